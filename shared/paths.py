@@ -1,0 +1,8 @@
+"""Where the project's data files are (the ``assets/`` folder beside the packages)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+PROJECT_DIR = Path(__file__).resolve().parent.parent
+ASSETS_DIR = PROJECT_DIR / "assets"
