@@ -1,0 +1,211 @@
+"""Read a cell file (TOML) into a ``Cell``; every error names the file and the field."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from shared.cells.cell import Cell, CellObject, Feature, ZoneDistances
+from shared.errors import FileFormatError, TeleprogError
+from shared.paths import ASSETS_DIR
+from shared.robots.description import LinkShape
+from shared.robots.loader import load_robot
+from shared.spatial import pose_to_transform
+
+CELLS_DIR = ASSETS_DIR / "cells"
+DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
+
+_LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
+_ANGLE_SCALE = {"rad": 1.0, "deg": np.pi / 180.0}
+
+Vec3 = tuple[float, float, float]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _Units(_Strict):
+    length: Literal["m", "mm"] = "m"
+    angle: Literal["rad", "deg"] = "rad"
+
+
+class _Pose(_Strict):
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+
+class _RobotSpec(_Pose):
+    ref: str
+    q_home: list[float] | None = None
+    tcp: _Pose = _Pose()
+
+
+class _FrameSpec(_Pose):
+    relative_to: str = "world"
+
+
+class _ShapeSpec(_Pose):
+    shape: Literal["box", "sphere", "cylinder", "capsule", "mesh"]
+    size: Vec3 | None = None
+    radius: float | None = Field(default=None, gt=0)
+    length: float | None = Field(default=None, gt=0)
+    mesh: str | None = None
+    scale: Vec3 = (1.0, 1.0, 1.0)
+
+
+class _ObjectSpec(_Pose):
+    name: str = Field(min_length=1)
+    frame: str = "world"
+    movable: bool = False
+    held: bool = False
+    color: tuple[int, int, int] = (180, 180, 180)
+    shapes: list[_ShapeSpec] = Field(min_length=1)
+
+
+class _FeatureSpec(_Pose):
+    name: str = Field(min_length=1)
+    frame: str = "world"
+    kind: str = "point"
+
+
+class _ZoneSpec(_Strict):
+    quasi: float = Field(gt=0)
+    operation: float = Field(gt=0)
+
+
+class _CellFile(_Strict):
+    name: str
+    description: str = ""
+    units: _Units = _Units()
+    robot: _RobotSpec
+    frames: dict[str, _FrameSpec] = {}
+    objects: list[_ObjectSpec] = []
+    features: list[_FeatureSpec] = []
+    zones: _ZoneSpec = _ZoneSpec(quasi=100.0, operation=20.0)
+    zone_overrides: dict[str, _ZoneSpec] = {}
+
+
+def _shape(spec: _ShapeSpec, where: str, path: Path, ls: float, as_: float) -> LinkShape:
+    needs = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"), "mesh": ("mesh",)}
+    for attr in needs[spec.shape]:
+        if getattr(spec, attr) is None:
+            raise FileFormatError(path, f"a {spec.shape} needs '{attr}'", f"{where}.{attr}")
+    mesh_path = ""
+    if spec.mesh is not None:
+        mesh_file = (path.parent / spec.mesh).resolve()
+        if not mesh_file.is_file():
+            raise FileFormatError(path, f"mesh file {mesh_file} does not exist", f"{where}.mesh")
+        mesh_path = str(mesh_file)
+    return LinkShape(
+        kind=spec.shape,
+        link_T_shape=pose_to_transform(np.array(spec.xyz) * ls, np.array(spec.rpy) * as_),
+        size=tuple(v * ls for v in spec.size) if spec.size else (0.0, 0.0, 0.0),
+        radius=(spec.radius or 0.0) * ls,
+        length=(spec.length or 0.0) * ls,
+        mesh_path=mesh_path,
+        scale=spec.scale,
+    )
+
+
+def load_cell(path: str | Path) -> Cell:
+    """Load and validate a cell file."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileFormatError(path, "file does not exist") from None
+    except IsADirectoryError:
+        raise FileFormatError(path, "is a directory, not a cell file") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(path, "not a text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise FileFormatError(path, f"not valid TOML: {exc}") from None
+    try:
+        spec = _CellFile.model_validate(raw)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or "(top level)"
+        raise FileFormatError(path, first["msg"], field) from None
+
+    ls, as_ = _LENGTH_SCALE[spec.units.length], _ANGLE_SCALE[spec.units.angle]
+
+    def pose(p: _Pose) -> np.ndarray:
+        return pose_to_transform(np.array(p.xyz) * ls, np.array(p.rpy) * as_)
+
+    ref = spec.robot.ref
+    if ref.endswith((".urdf", ".toml")):
+        ref = str((path.parent / ref).resolve())
+    try:
+        robot = load_robot(ref)
+    except TeleprogError as exc:
+        raise FileFormatError(path, str(exc), "robot.ref") from None
+
+    frames: dict[str, np.ndarray] = {"world": np.eye(4), "base": pose(spec.robot)}
+    for name, fspec in spec.frames.items():
+        if name in ("world", "base", "tool"):
+            raise FileFormatError(path, f"frame {name!r} is built in and cannot be redefined", f"frames.{name}")
+        if fspec.relative_to not in frames:
+            raise FileFormatError(
+                path, f"relative_to {fspec.relative_to!r} is not a frame defined above; valid: {', '.join(frames)}",
+                f"frames.{name}.relative_to",
+            )
+        frames[name] = frames[fspec.relative_to] @ pose(fspec)
+    frames.setdefault("work", np.eye(4))
+
+    q_home = np.zeros(robot.dof)
+    if spec.robot.q_home is not None:
+        if len(spec.robot.q_home) != robot.dof:
+            raise FileFormatError(path, f"robot {robot.name!r} has {robot.dof} joints, q_home has {len(spec.robot.q_home)}", "robot.q_home")
+        q_home = np.array(spec.robot.q_home) * as_
+        if not robot.within_limits(q_home):
+            raise FileFormatError(path, "q_home is outside the robot's joint ranges", "robot.q_home")
+
+    objects: list[CellObject] = []
+    for i, ospec in enumerate(spec.objects):
+        where = f"objects.{i}"
+        if ospec.name in (o.name for o in objects):
+            raise FileFormatError(path, f"object name {ospec.name!r} is used twice", f"{where}.name")
+        if ospec.frame not in frames:
+            raise FileFormatError(path, f"frame {ospec.frame!r} is not defined; valid: {', '.join(frames)}", f"{where}.frame")
+        shapes = tuple(_shape(s, f"{where}.shapes.{k}", path, ls, as_) for k, s in enumerate(ospec.shapes))
+        objects.append(
+            CellObject(
+                name=ospec.name, world_T_object=frames[ospec.frame] @ pose(ospec), shapes=shapes,
+                movable=ospec.movable, held=ospec.held, color=ospec.color,
+            )
+        )
+    features: dict[str, Feature] = {}
+    for i, fspec in enumerate(spec.features):
+        if fspec.frame not in frames:
+            raise FileFormatError(path, f"frame {fspec.frame!r} is not defined; valid: {', '.join(frames)}", f"features.{i}.frame")
+        features[fspec.name] = Feature(fspec.name, frames[fspec.frame] @ pose(fspec), fspec.kind)
+
+    def zones(z: _ZoneSpec, where: str) -> ZoneDistances:
+        if not z.operation < z.quasi:
+            raise FileFormatError(path, f"operation distance {z.operation} must be below quasi distance {z.quasi}", where)
+        return ZoneDistances(quasi=z.quasi * ls, operation=z.operation * ls)
+
+    overrides = {}
+    for name, z in spec.zone_overrides.items():
+        if name not in (o.name for o in objects):
+            raise FileFormatError(path, f"no object named {name!r}", f"zone_overrides.{name}")
+        overrides[name] = zones(z, f"zone_overrides.{name}")
+    return Cell(
+        name=spec.name,
+        source=str(path),
+        robot=robot,
+        world_T_base=frames["base"],
+        q_home=q_home,
+        flange_T_tcp=pose(spec.robot.tcp),
+        frames=frames,
+        objects=tuple(objects),
+        features=features,
+        zones=zones(spec.zones, "zones"),
+        zone_overrides=overrides,
+        description=spec.description,
+    )
