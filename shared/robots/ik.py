@@ -18,35 +18,44 @@ import numpy as np
 
 from shared.errors import InputError
 from shared.robots.model import LIMIT_TOLERANCE, Robot
+from shared.spatial import invert
 
 #: two solutions closer than this (rad, max-norm) are the same solution
 DUPLICATE_TOLERANCE = 1e-6
 
 
 def _wrap(q: np.ndarray) -> np.ndarray:
-    """Angles into (-pi, pi]."""
-    return np.pi - np.mod(np.pi - q, 2.0 * np.pi)
+    """Angles into (-pi, pi] (``np.mod`` may round up to 2 pi: fold that back)."""
+    out = np.pi - np.mod(np.pi - q, 2.0 * np.pi)
+    return np.where(out <= -np.pi, out + 2.0 * np.pi, out)
 
 
 def _in_range_variants(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
     """Every ``q + 2 pi k`` (per joint) inside the joint ranges."""
-    options: list[list[float]] = []
-    for i, value in enumerate(_wrap(q)):
-        lo, hi = robot.lower[i] - LIMIT_TOLERANCE, robot.upper[i] + LIMIT_TOLERANCE
-        k_min, k_max = int(np.ceil((lo - value) / (2 * np.pi))), int(np.floor((hi - value) / (2 * np.pi)))
-        vals = [value + 2 * np.pi * k for k in range(k_min, k_max + 1)]
-        if not vals:
-            return []
-        options.append([float(np.clip(v, robot.lower[i], robot.upper[i])) for v in vals])
+    wrapped = _wrap(q)
+    two_pi = 2.0 * np.pi
+    k_min = np.ceil((robot.lower - LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
+    k_max = np.floor((robot.upper + LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
+    if np.any(k_max < k_min):
+        return []
+    base = np.clip(wrapped + two_pi * k_min, robot.lower, robot.upper)
+    if np.all(k_max == k_min):  # the common case: one representative per joint
+        return [base]
+    options = [
+        np.clip(wrapped[i] + two_pi * np.arange(k_min[i], k_max[i] + 1), robot.lower[i], robot.upper[i])
+        for i in range(len(q))
+    ]
     return [np.array(c) for c in itertools.product(*options)]
 
 
 def _dedupe(solutions: list[np.ndarray]) -> list[np.ndarray]:
-    out: list[np.ndarray] = []
-    for s in solutions:
-        if all(np.max(np.abs(s - o)) > DUPLICATE_TOLERANCE for o in out):
-            out.append(s)
-    return out
+    """Drop solutions within ``DUPLICATE_TOLERANCE`` of an earlier one (max-norm)."""
+    if len(solutions) < 2:
+        return solutions
+    arr = np.stack(solutions)
+    close = np.max(np.abs(arr[:, None, :] - arr[None, :, :]), axis=2) <= DUPLICATE_TOLERANCE
+    keep = ~np.any(np.tril(close, k=-1), axis=1)
+    return [s for s, k in zip(solutions, keep) if k]
 
 
 def solve_ik(
@@ -68,8 +77,8 @@ def solve_ik(
 
         if base_T_tool is None:
             raise InputError("the PUMA needs a full tool pose (position and orientation)")
-        base_T_flange = base_T_tool @ np.linalg.inv(robot.description.flange_T_tool)
-        raw = puma_ik_all(robot.description.joints, base_T_flange)
+        base_T_flange = base_T_tool @ invert(robot.description.flange_T_tool)
+        raw = puma_ik_all(robot.description.joints, base_T_flange, q4_singular=float(q_ref[3]))
     elif kind == "rover":
         from shared.robots.ik_rover import rover_ik_all
 
@@ -86,5 +95,7 @@ def solve_ik(
     else:
         candidates = [_wrap(q) for q in raw]
     candidates = _dedupe(candidates)
-    candidates.sort(key=lambda q: float(np.sum((q - q_ref) ** 2)))
+    if len(candidates) > 1:
+        order = np.argsort(np.sum((np.stack(candidates) - q_ref) ** 2, axis=1), kind="stable")
+        candidates = [candidates[i] for i in order]
     return candidates
