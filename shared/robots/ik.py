@@ -30,22 +30,26 @@ def _wrap(q: np.ndarray) -> np.ndarray:
     return np.where(out <= -np.pi, out + 2.0 * np.pi, out)
 
 
-def _in_range_variants(robot: Robot, q: np.ndarray) -> list[np.ndarray]:
-    """Every ``q + 2 pi k`` (per joint) inside the joint ranges."""
-    wrapped = _wrap(q)
+def _in_range_variants(robot: Robot, raw: np.ndarray) -> list[np.ndarray]:
+    """Every ``q + 2 pi k`` (per joint) inside the joint ranges, for each row of ``raw`` (n, dof)."""
+    wrapped = _wrap(raw)
     two_pi = 2.0 * np.pi
     k_min = np.ceil((robot.lower - LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
     k_max = np.floor((robot.upper + LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
-    if np.any(k_max < k_min):
-        return []
+    feasible = np.all(k_max >= k_min, axis=1)
+    single = feasible & np.all(k_max == k_min, axis=1)
     base = np.clip(wrapped + two_pi * k_min, robot.lower, robot.upper)
-    if np.all(k_max == k_min):  # the common case: one representative per joint
-        return [base]
-    options = [
-        np.clip(wrapped[i] + two_pi * np.arange(k_min[i], k_max[i] + 1), robot.lower[i], robot.upper[i])
-        for i in range(len(q))
-    ]
-    return [np.array(c) for c in itertools.product(*options)]
+    out: list[np.ndarray] = []
+    for row in np.flatnonzero(feasible):
+        if single[row]:  # the common case: one representative per joint
+            out.append(base[row])
+            continue
+        options = [
+            np.clip(wrapped[row, i] + two_pi * np.arange(k_min[row, i], k_max[row, i] + 1), robot.lower[i], robot.upper[i])
+            for i in range(robot.dof)
+        ]
+        out.extend(np.array(c) for c in itertools.product(*options))
+    return out
 
 
 def _dedupe(solutions: list[np.ndarray]) -> list[np.ndarray]:
@@ -90,10 +94,10 @@ def solve_ik(
         if base_T_tool is None:
             raise InputError(f"robot {robot.name!r} needs a full tool pose for inverse kinematics")
         raw = dls_ik_all(robot, base_T_tool, q_ref)
-    if respect_limits:
-        candidates = [v for q in raw for v in _in_range_variants(robot, q)]
-    else:
-        candidates = [_wrap(q) for q in raw]
+    if not raw:
+        return []
+    raw_arr = np.stack(raw)
+    candidates = _in_range_variants(robot, raw_arr) if respect_limits else list(_wrap(raw_arr))
     candidates = _dedupe(candidates)
     if len(candidates) > 1:
         order = np.argsort(np.sum((np.stack(candidates) - q_ref) ** 2, axis=1), kind="stable")
