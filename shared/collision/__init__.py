@@ -1,0 +1,13 @@
+"""Collision core (seed 002): hybrid bounding-volume hierarchies, exact triangle tests,
+exact distances, for the robot at q among a cell's objects. See ``scene.SceneModel``."""
+
+from shared.collision.mesh_model import BodyMesh, MeshError, body_mesh, body_mesh_from_arrays
+from shared.collision.obb_tree import OBBTree, build_obb_tree, fit_obb
+from shared.collision.scene import CollisionReport, InterferingPair, PairDistance, SceneData, SceneModel
+from shared.collision.zones import ZoneState, classify, zone
+
+__all__ = [
+    "BodyMesh", "MeshError", "body_mesh", "body_mesh_from_arrays", "OBBTree", "build_obb_tree", "fit_obb",
+    "CollisionReport", "InterferingPair", "PairDistance", "SceneData", "SceneModel",
+    "ZoneState", "classify", "zone",
+]

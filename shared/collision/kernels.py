@@ -1,0 +1,450 @@
+"""Compiled scene traversal: sphere -> AABB -> OBB tree -> triangles, and exact distances.
+
+One numba call checks every active body pair of a scene. The bodies' hierarchies are packed in
+flat arrays (``scene.PackedScene``): node arrays are global (child and triangle indices already
+offset), so the kernel signature does not depend on the number of bodies.
+
+Per pair ``p = (a, b)`` the mode is 0 (skip), 1 (collision: every interfering triangle pair) or
+2 (collision, then the exact distance with witness points if apart). Work happens in body a's
+frame: body b's boxes and triangles are mapped by ``a_T_b``.
+
+Coherence between calls (the per-query state in ``scene.SceneData``):
+* ``lb[p]`` is a lower bound on the pair's distance at the previous call (the exact distance in
+  mode 2, else the smallest gap among the tests that rejected, 0 if unknown). Before testing,
+  it is lowered by how far each body can have moved since (``|dR|_F r + |dR c + dt|`` over its
+  bounding sphere); if it stays positive the pair cannot touch and the tree is not entered.
+* ``wit[p]`` holds the last witness triangle pair; its distance at the new pose starts the
+  branch-and-bound with a tight upper bound, so most of both trees is pruned at once.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from shared.collision.distance import tri_tri_dist2
+from shared.collision.tri_tri import JIT, plane_gap, tri_tri_intersect
+
+# indices into the stats counter array
+ST_PAIRS_TESTED = 0
+ST_SPHERE_REJECT = 1
+ST_AABB_REJECT = 2
+ST_COHERENCE_SKIP = 3
+ST_NODE_TESTS = 4
+ST_TRI_TESTS = 5
+ST_DIST_NODE = 6
+ST_DIST_TRI = 7
+N_STATS = 8
+FULL_SAT = True
+
+
+@njit(**JIT)
+def _rel(Rw, tw, a, b, R, t):
+    """a_T_b from world poses into R (3, 3), t (3,)."""
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                s += Rw[a, k, i] * Rw[b, k, j]
+            R[i, j] = s
+        s = 0.0
+        for k in range(3):
+            s += Rw[a, k, i] * (tw[b, k] - tw[a, k])
+        t[i] = s
+
+
+@njit(**JIT)
+def _xf(R, t, v):
+    return (
+        R[0, 0] * v[0] + R[0, 1] * v[1] + R[0, 2] * v[2] + t[0],
+        R[1, 0] * v[0] + R[1, 1] * v[1] + R[1, 2] * v[2] + t[1],
+        R[2, 0] * v[0] + R[2, 1] * v[1] + R[2, 2] * v[2] + t[2],
+    )
+
+
+@njit(**JIT)
+def _tri(tv, k):
+    return (
+        (tv[k, 0, 0], tv[k, 0, 1], tv[k, 0, 2]),
+        (tv[k, 1, 0], tv[k, 1, 1], tv[k, 1, 2]),
+        (tv[k, 2, 0], tv[k, 2, 1], tv[k, 2, 2]),
+    )
+
+
+@njit(**JIT)
+def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
+    """Lower bound on the distance between node i (body a) and node j (body b, mapped by R, t).
+
+    Positive: the boxes are apart by at least this (separating-axis gap, or the bounding-sphere
+    gap if larger). ``early``: return at the first separating axis (collision); else the largest
+    gap over all 15 axes and the spheres (distance bound), returning as soon as it reaches
+    ``stop`` (a bound that large already prunes the pair).
+    """
+    if early:
+        stop = 0.0
+    # centre of j in a's frame, minus centre of i
+    d0 = R[0, 0] * nc[j, 0] + R[0, 1] * nc[j, 1] + R[0, 2] * nc[j, 2] + t[0] - nc[i, 0]
+    d1 = R[1, 0] * nc[j, 0] + R[1, 1] * nc[j, 1] + R[1, 2] * nc[j, 2] + t[1] - nc[i, 1]
+    d2 = R[2, 0] * nc[j, 0] + R[2, 1] * nc[j, 1] + R[2, 2] * nc[j, 2] + t[2] - nc[i, 2]
+    dn = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    best = dn - nrad[i] - nrad[j]
+    if best > stop:
+        return best
+    # M = R Ub: box j's axes in a's frame
+    for k in range(3):
+        for c in range(3):
+            AC[k, c] = R[k, 0] * nax[j, 0, c] + R[k, 1] * nax[j, 1, c] + R[k, 2] * nax[j, 2, c]
+    if dn > 0.0:
+        # the centre-to-centre direction as a 16th axis: much tighter than the spheres and the
+        # 15 box axes when the boxes are far apart relative to their size (distance queries)
+        u0, u1, u2 = d0 / dn, d1 / dn, d2 / dn
+        ra = 0.0
+        rb = 0.0
+        for c in range(3):
+            ra += nh[i, c] * abs(u0 * nax[i, 0, c] + u1 * nax[i, 1, c] + u2 * nax[i, 2, c])
+            rb += nh[j, c] * abs(u0 * AC[0, c] + u1 * AC[1, c] + u2 * AC[2, c])
+        g = dn - ra - rb
+        if g > best:
+            best = g
+            if best > stop:
+                return best
+    if not early and not full_sat:
+        return best
+    # C = Ua^T M: rotation of box j's axes in box i's axes; T = Ua^T d
+    for r in range(3):
+        for c in range(3):
+            C[r, c] = nax[i, 0, r] * AC[0, c] + nax[i, 1, r] * AC[1, c] + nax[i, 2, r] * AC[2, c]
+    for r in range(3):
+        for c in range(3):
+            AC[r, c] = abs(C[r, c]) + 1e-12
+    T0 = nax[i, 0, 0] * d0 + nax[i, 1, 0] * d1 + nax[i, 2, 0] * d2
+    T1 = nax[i, 0, 1] * d0 + nax[i, 1, 1] * d1 + nax[i, 2, 1] * d2
+    T2 = nax[i, 0, 2] * d0 + nax[i, 1, 2] * d1 + nax[i, 2, 2] * d2
+    ha0, ha1, ha2 = nh[i, 0], nh[i, 1], nh[i, 2]
+    hb0, hb1, hb2 = nh[j, 0], nh[j, 1], nh[j, 2]
+    # axes of box i
+    g = abs(T0) - (ha0 + hb0 * AC[0, 0] + hb1 * AC[0, 1] + hb2 * AC[0, 2])
+    if g > best:
+        best = g
+        if best > stop:
+            return best
+    g = abs(T1) - (ha1 + hb0 * AC[1, 0] + hb1 * AC[1, 1] + hb2 * AC[1, 2])
+    if g > best:
+        best = g
+        if best > stop:
+            return best
+    g = abs(T2) - (ha2 + hb0 * AC[2, 0] + hb1 * AC[2, 1] + hb2 * AC[2, 2])
+    if g > best:
+        best = g
+        if best > stop:
+            return best
+    # axes of box j
+    for c in range(3):
+        hb = nh[j, c]
+        g = abs(T0 * C[0, c] + T1 * C[1, c] + T2 * C[2, c]) - (ha0 * AC[0, c] + ha1 * AC[1, c] + ha2 * AC[2, c] + hb)
+        if g > best:
+            best = g
+            if best > stop:
+                return best
+    # cross axes a_r x b_c
+    for r in range(3):
+        r1 = (r + 1) % 3
+        r2 = (r + 2) % 3
+        if r1 == 0:
+            Tr1, har1 = T0, ha0
+        elif r1 == 1:
+            Tr1, har1 = T1, ha1
+        else:
+            Tr1, har1 = T2, ha2
+        if r2 == 0:
+            Tr2, har2 = T0, ha0
+        elif r2 == 1:
+            Tr2, har2 = T1, ha1
+        else:
+            Tr2, har2 = T2, ha2
+        for c in range(3):
+            s2 = 1.0 - C[r, c] * C[r, c]
+            if s2 < 1e-12:
+                continue  # parallel axes: covered by the face axes
+            c1 = (c + 1) % 3
+            c2 = (c + 2) % 3
+            ra = har1 * AC[r2, c] + har2 * AC[r1, c]
+            rb = nh[j, c1] * AC[r, c2] + nh[j, c2] * AC[r, c1]
+            g = (abs(Tr2 * C[r1, c] - Tr1 * C[r2, c]) - ra - rb) / math.sqrt(s2)
+            if g > best:
+                best = g
+                if best > stop:
+                    return best
+    return best
+
+
+@njit(**JIT)
+def _body_aabb(Rw, tw, hv, hs, hn, b, out):
+    for k in range(3):
+        out[b, k] = np.inf
+        out[b, 3 + k] = -np.inf
+    for v in range(hs[b], hs[b] + hn[b]):
+        for k in range(3):
+            x = Rw[b, k, 0] * hv[v, 0] + Rw[b, k, 1] * hv[v, 1] + Rw[b, k, 2] * hv[v, 2] + tw[b, k]
+            if x < out[b, k]:
+                out[b, k] = x
+            if x > out[b, 3 + k]:
+                out[b, 3 + k] = x
+
+
+@njit(**JIT)
+def _grow(a, n):
+    out = np.empty(max(2 * a.shape[0], n), dtype=a.dtype)
+    out[: a.shape[0]] = a
+    return out
+
+
+@njit(**JIT)
+def _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, R, t, C, AC,
+                  all_tris, out_p, out_a, out_b, n_out, stats):
+    """OBB-tree descent and triangle tests of one pair: (hit, lower bound, n_out)."""
+    sa = np.empty(64, dtype=np.int64)
+    sb = np.empty(64, dtype=np.int64)
+    sa[0] = broot[a]
+    sb[0] = broot[b]
+    top = 1
+    lb = np.inf
+    hit = False
+    while top > 0:
+        top -= 1
+        i = sa[top]
+        j = sb[top]
+        stats[ST_NODE_TESTS] += 1
+        g = _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, True, 0.0)
+        if g > 0.0:
+            if g < lb:
+                lb = g
+            continue
+        leaf_i = nl[i] < 0
+        leaf_j = nl[j] < 0
+        if leaf_i and leaf_j:
+            for ka in range(nts[i], nts[i] + ntc[i]):
+                p0, p1, p2 = _tri(tv, ka)
+                for kb in range(nts[j], nts[j] + ntc[j]):
+                    q0, q1, q2 = _tri(tv, kb)
+                    q0 = _xf(R, t, q0)
+                    q1 = _xf(R, t, q1)
+                    q2 = _xf(R, t, q2)
+                    stats[ST_TRI_TESTS] += 1
+                    pg = plane_gap(p0, p1, p2, q0, q1, q2)
+                    if pg > 0.0:
+                        if pg < lb:
+                            lb = pg
+                        continue
+                    if tri_tri_intersect(p0, p1, p2, q0, q1, q2):
+                        hit = True
+                        if n_out < out_p.shape[0]:
+                            out_p[n_out] = p
+                            out_a[n_out] = tid[ka]
+                            out_b[n_out] = tid[kb]
+                        n_out += 1
+                        if not all_tris:
+                            return True, 0.0, n_out
+                    else:
+                        lb = 0.0
+            continue
+        if top + 2 > sa.shape[0]:
+            sa = _grow(sa, top + 2)
+            sb = _grow(sb, top + 2)
+        if leaf_j or (not leaf_i and nrad[i] >= nrad[j]):
+            sa[top] = nr[i]
+            sb[top] = j
+            sa[top + 1] = nl[i]
+            sb[top + 1] = j
+        else:
+            sa[top] = i
+            sb[top] = nr[j]
+            sa[top + 1] = i
+            sb[top + 1] = nl[j]
+        top += 2
+    if hit:
+        return True, 0.0, n_out
+    return False, lb, n_out
+
+
+@njit(**JIT)
+def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C, AC, wa, wb, stats):
+    """Exact distance of a pair known to be apart: (d, point on a, point on b, witness tris)."""
+    best2 = np.inf
+    bp = (np.nan, np.nan, np.nan)
+    bq = (np.nan, np.nan, np.nan)
+    ba = -1
+    bb = -1
+    if wa >= 0 and wb >= 0:
+        p0, p1, p2 = _tri(tv, wa)
+        q0, q1, q2 = _tri(tv, wb)
+        best2, bp, bq = tri_tri_dist2(p0, p1, p2, _xf(R, t, q0), _xf(R, t, q1), _xf(R, t, q2))
+        ba = wa
+        bb = wb
+    ub = math.sqrt(best2)
+    sa = np.empty(64, dtype=np.int64)
+    sb = np.empty(64, dtype=np.int64)
+    sl = np.empty(64, dtype=np.float64)
+    sa[0] = broot[a]
+    sb[0] = broot[b]
+    sl[0] = 0.0
+    top = 1
+    while top > 0:
+        top -= 1
+        i = sa[top]
+        j = sb[top]
+        if sl[top] >= ub:
+            continue
+        leaf_i = nl[i] < 0
+        leaf_j = nl[j] < 0
+        if leaf_i and leaf_j:
+            for ka in range(nts[i], nts[i] + ntc[i]):
+                p0, p1, p2 = _tri(tv, ka)
+                for kb in range(nts[j], nts[j] + ntc[j]):
+                    q0, q1, q2 = _tri(tv, kb)
+                    stats[ST_DIST_TRI] += 1
+                    d2, x, y = tri_tri_dist2(p0, p1, p2, _xf(R, t, q0), _xf(R, t, q1), _xf(R, t, q2))
+                    if d2 < best2:
+                        best2 = d2
+                        bp = x
+                        bq = y
+                        ba = ka
+                        bb = kb
+                        ub = math.sqrt(best2)
+            continue
+        if leaf_j or (not leaf_i and nrad[i] >= nrad[j]):
+            i1, j1, i2, j2 = nl[i], j, nr[i], j
+        else:
+            i1, j1, i2, j2 = i, nl[j], i, nr[j]
+        stats[ST_DIST_NODE] += 2
+        g1 = max(_node_gap(nc, nax, nh, nrad, i1, j1, R, t, C, AC, False, ub, FULL_SAT), 0.0)
+        g2 = max(_node_gap(nc, nax, nh, nrad, i2, j2, R, t, C, AC, False, ub, FULL_SAT), 0.0)
+        if top + 2 > sa.shape[0]:
+            sa = _grow(sa, top + 2)
+            sb = _grow(sb, top + 2)
+            sl = _grow(sl, top + 2)
+        if g1 > g2:  # pop the nearer child first
+            i1, j1, g1, i2, j2, g2 = i2, j2, g2, i1, j1, g1
+        if g2 < ub:
+            sa[top] = i2
+            sb[top] = j2
+            sl[top] = g2
+            top += 1
+        if g1 < ub:
+            sa[top] = i1
+            sb[top] = j1
+            sl[top] = g1
+            top += 1
+    return ub, bp, bq, ba, bb
+
+
+@njit(**JIT)
+def scene_check(
+    nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn,
+    Rw, tw, pairs, mode, all_tris,
+    lb, wit, Rprev, tprev, have_prev,
+    hit, dist, wpa, wpb, out_p, out_a, out_b, stats,
+):
+    """Check every pair with mode > 0. Returns the number of interfering triangle pairs found
+    (if larger than ``out_p.size`` the buffers overflowed: call again with larger ones)."""
+    n_bodies = Rw.shape[0]
+    # world bounding spheres and how far each body can have moved since the previous call
+    wsc = np.empty((n_bodies, 3))
+    move = np.empty(n_bodies)
+    aabb = np.empty((n_bodies, 6))
+    aabb_done = np.zeros(n_bodies, dtype=np.bool_)
+    for b in range(n_bodies):
+        for k in range(3):
+            wsc[b, k] = Rw[b, k, 0] * bsc[b, 0] + Rw[b, k, 1] * bsc[b, 1] + Rw[b, k, 2] * bsc[b, 2] + tw[b, k]
+        if have_prev:
+            fro = 0.0
+            m2 = 0.0
+            for k in range(3):
+                s = tw[b, k] - tprev[b, k]
+                for c in range(3):
+                    dr = Rw[b, k, c] - Rprev[b, k, c]
+                    fro += dr * dr
+                    s += dr * bsc[b, c]
+                m2 += s * s
+            move[b] = math.sqrt(fro) * bsr[b] + math.sqrt(m2)
+        else:
+            move[b] = np.inf
+    R = np.empty((3, 3))
+    t = np.empty(3)
+    C = np.empty((3, 3))
+    AC = np.empty((3, 3))
+    n_out = 0
+    for p in range(pairs.shape[0]):
+        m = mode[p]
+        hit[p] = False
+        dist[p] = np.nan
+        for k in range(3):
+            wpa[p, k] = np.nan
+            wpb[p, k] = np.nan
+        if m == 0:
+            lb[p] = 0.0
+            continue
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        stats[ST_PAIRS_TESTED] += 1
+        # coherence: the previous lower bound minus the motion since
+        bound = lb[p] - move[a] - move[b]
+        apart = bound > 0.0
+        if apart:
+            stats[ST_COHERENCE_SKIP] += 1
+            lb[p] = bound
+        else:
+            # bounding spheres
+            dx = wsc[a, 0] - wsc[b, 0]
+            dy = wsc[a, 1] - wsc[b, 1]
+            dz = wsc[a, 2] - wsc[b, 2]
+            g = math.sqrt(dx * dx + dy * dy + dz * dz) - bsr[a] - bsr[b]
+            if g > 0.0:
+                stats[ST_SPHERE_REJECT] += 1
+                apart = True
+                lb[p] = g
+            else:
+                # world AABBs rebuilt from the convex-hull vertices at this pose
+                if not aabb_done[a]:
+                    _body_aabb(Rw, tw, hv, hs, hn, a, aabb)
+                    aabb_done[a] = True
+                if not aabb_done[b]:
+                    _body_aabb(Rw, tw, hv, hs, hn, b, aabb)
+                    aabb_done[b] = True
+                g = -np.inf
+                for k in range(3):
+                    g = max(g, aabb[b, k] - aabb[a, 3 + k], aabb[a, k] - aabb[b, 3 + k])
+                if g > 0.0:
+                    stats[ST_AABB_REJECT] += 1
+                    apart = True
+                    lb[p] = g
+        if apart and m == 1:
+            continue
+        _rel(Rw, tw, a, b, R, t)
+        if not apart:
+            h, g, n_out = _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, R, t, C, AC,
+                                        all_tris, out_p, out_a, out_b, n_out, stats)
+            hit[p] = h
+            lb[p] = g
+            if h:
+                dist[p] = 0.0
+                continue
+            if m == 1:
+                continue
+        d, x, y, ka, kb = _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C, AC,
+                                         wit[p, 0], wit[p, 1], stats)
+        dist[p] = d
+        lb[p] = d
+        wit[p, 0] = ka
+        wit[p, 1] = kb
+        for k in range(3):
+            wpa[p, k] = Rw[a, k, 0] * x[0] + Rw[a, k, 1] * x[1] + Rw[a, k, 2] * x[2] + tw[a, k]
+            wpb[p, k] = Rw[a, k, 0] * y[0] + Rw[a, k, 1] * y[1] + Rw[a, k, 2] * y[2] + tw[a, k]
+    for b in range(n_bodies):
+        for k in range(3):
+            tprev[b, k] = tw[b, k]
+            for c in range(3):
+                Rprev[b, k, c] = Rw[b, k, c]
+    return n_out

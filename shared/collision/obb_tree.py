@@ -1,0 +1,200 @@
+"""The hybrid bounding-volume hierarchy of seed 002 for one body, built once (immutable).
+
+Per body: a bounding sphere (centre of the body's AABB, radius to the farthest vertex), the
+vertices of its convex hull (to rebuild the world AABB exactly at any pose, as the paper
+rebuilds the AABB after a rotation), and an OBB tree built top down:
+
+* a node's box axes are the eigenvectors of the area-weighted covariance of its triangles
+  (Gottschalk: ``C_ij = 1/a_H sum_k a_k/12 (9 m_ki m_kj + p_ki p_kj + q_ki q_kj + r_ki r_kj)
+  - m_Hi m_Hj``); when eigenvalues repeat (a cube, a square peg) the eigenvectors are arbitrary
+  in the repeated plane, so more candidate bases are tried (the body axes and the frames of
+  the node's largest triangle, x along each edge) and the smallest box is kept;
+* extents come from projecting the node's vertices on the axes;
+* a node splits by the plane through the mean of its vertices perpendicular to its longest axis,
+  each triangle going to the side of its centroid; if one side would be empty the other axes are
+  tried by decreasing length; if all fail (or ``leaf_size`` is reached) the node is a leaf.
+
+Arrays are flat (preorder): node ``i`` has ``center[i]`` (3,), ``axes[i]`` (3, 3) with the box
+axes as columns, ``half[i]`` (3,), ``radius[i]`` (bounding-sphere radius about ``center[i]``),
+``left[i]``/``right[i]`` (-1 for a leaf), ``tri_start[i]``/``tri_count[i]`` (its triangles in
+``tris``). ``tris`` (T, 3, 3) holds triangle vertices in tree order, ``tri_ids`` their ids in the
+body mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: absolute padding (m) added to every box and sphere so rounding never shaves off a vertex
+PAD = 1e-12
+
+
+@dataclass(frozen=True)
+class OBBTree:
+    center: np.ndarray
+    axes: np.ndarray
+    half: np.ndarray
+    radius: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    tri_start: np.ndarray
+    tri_count: np.ndarray
+    tris: np.ndarray
+    tri_ids: np.ndarray
+    sphere_center: np.ndarray
+    sphere_radius: float
+    hull_vertices: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.center)
+
+    @property
+    def depth(self) -> int:
+        depth = np.zeros(self.n_nodes, dtype=int)
+        for i in range(self.n_nodes):
+            for c in (self.left[i], self.right[i]):
+                if c >= 0:
+                    depth[c] = depth[i] + 1
+        return int(depth.max()) + 1
+
+
+def covariance_axes(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gottschalk's area-weighted triangle covariance of ``tris`` (k, 3, 3): (eigenvalues
+    ascending, eigenvectors as columns, right-handed)."""
+    p, q, r = tris[:, 0], tris[:, 1], tris[:, 2]
+    area = 0.5 * np.linalg.norm(np.cross(q - p, r - p), axis=1)
+    total = area.sum()
+    if total <= 0.0:  # all slivers: plain vertex covariance
+        pts = tris.reshape(-1, 3)
+        cov = np.cov(pts.T, bias=True) if len(pts) > 1 else np.zeros((3, 3))
+    else:
+        m = (p + q + r) / 3.0
+        m_h = (area[:, None] * m).sum(axis=0) / total
+        s = 9.0 * np.einsum("k,ki,kj->ij", area, m, m)
+        for v in (p, q, r):
+            s += np.einsum("k,ki,kj->ij", area, v, v)
+        cov = s / (12.0 * total) - np.outer(m_h, m_h)
+    w, v = np.linalg.eigh(0.5 * (cov + cov.T))
+    if np.linalg.det(v) < 0:
+        v[:, 2] = -v[:, 2]
+    return w, v
+
+
+def _box_in_basis(pts: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    proj = pts @ basis
+    lo, hi = proj.min(axis=0), proj.max(axis=0)
+    return basis @ ((lo + hi) / 2.0), (hi - lo) / 2.0
+
+
+def _triangle_frames(tri: np.ndarray) -> list[np.ndarray]:
+    """Right-handed frames with z along the triangle's normal and x along each of its edges."""
+    n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+    ln = np.linalg.norm(n)
+    if ln <= 0.0:
+        return []
+    z = n / ln
+    frames = []
+    for e in (tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]):
+        le = np.linalg.norm(e)
+        if le > 0.0:
+            x = e / le
+            frames.append(np.column_stack([x, np.cross(z, x), z]))
+    return frames
+
+
+def fit_obb(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """OBB of triangles ``(k, 3, 3)``: (center (3,), axes (3, 3) as columns, half extents (3,))."""
+    pts = tris.reshape(-1, 3)
+    _, cov_basis = covariance_axes(tris)
+    candidates = [cov_basis, np.eye(3)]
+    areas = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    candidates += _triangle_frames(tris[int(np.argmax(areas))])
+    best = None
+    for basis in candidates:
+        center, half = _box_in_basis(pts, basis)
+        eps = 1e-6 * max(float(half.max()), 1e-12)
+        score = float(np.prod(half + eps))
+        if best is None or score < best[0] * (1.0 - 1e-9):
+            best = (score, center, basis, half)
+    _, center, basis, half = best
+    return center, basis, half + PAD
+
+
+def _split(tris: np.ndarray, idx: np.ndarray, axes: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    sub = tris[idx]
+    mean = sub.reshape(-1, 3).mean(axis=0)
+    centroids = sub.mean(axis=1)
+    for a in np.argsort(-half, kind="stable"):
+        side = (centroids - mean) @ axes[:, a] < 0.0
+        n_left = int(side.sum())
+        if 0 < n_left < len(idx):
+            return idx[side], idx[~side]
+    return None
+
+
+def _hull_vertices(vertices: np.ndarray) -> np.ndarray:
+    try:
+        from scipy.spatial import ConvexHull
+
+        return np.ascontiguousarray(vertices[ConvexHull(vertices).vertices])
+    except Exception:  # flat or tiny point sets: every vertex (still exact for the AABB)
+        return np.ascontiguousarray(np.unique(vertices, axis=0))
+
+
+def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) -> OBBTree:
+    """Build the hierarchy of one body (vertices (V, 3) and faces (F, 3) in the body frame)."""
+    vertices = np.asarray(vertices, dtype=float)
+    faces = np.asarray(faces, dtype=np.int64)
+    tris_all = vertices[faces]
+    centers, axes_l, halves, radii, lefts, rights, starts, counts = [], [], [], [], [], [], [], []
+    order: list[np.ndarray] = []
+    n_tris_placed = 0
+    # explicit stack of (triangle ids, parent node, is_left)
+    stack: list[tuple[np.ndarray, int, bool]] = [(np.arange(len(faces)), -1, False)]
+    while stack:
+        idx, parent, is_left = stack.pop()
+        node = len(centers)
+        if parent >= 0:
+            (lefts if is_left else rights)[parent] = node
+        sub = tris_all[idx]
+        c, ax, h = fit_obb(sub)
+        centers.append(c)
+        axes_l.append(ax)
+        halves.append(h)
+        radii.append(float(np.linalg.norm(sub.reshape(-1, 3) - c, axis=1).max()) + PAD)
+        lefts.append(-1)
+        rights.append(-1)
+        parts = _split(tris_all, idx, ax, h) if len(idx) > leaf_size else None
+        if parts is None:
+            starts.append(n_tris_placed)
+            counts.append(len(idx))
+            order.append(idx)
+            n_tris_placed += len(idx)
+        else:
+            starts.append(-1)
+            counts.append(0)
+            # pushed right first so the left child is numbered next (preorder)
+            stack.append((parts[1], node, False))
+            stack.append((parts[0], node, True))
+    tri_ids = np.concatenate(order)
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    sphere_center = (lo + hi) / 2.0
+    sphere_radius = float(np.linalg.norm(vertices - sphere_center, axis=1).max()) + PAD
+    return OBBTree(
+        center=np.array(centers),
+        axes=np.array(axes_l),
+        half=np.array(halves),
+        radius=np.array(radii),
+        left=np.array(lefts, dtype=np.int64),
+        right=np.array(rights, dtype=np.int64),
+        tri_start=np.array(starts, dtype=np.int64),
+        tri_count=np.array(counts, dtype=np.int64),
+        tris=np.ascontiguousarray(tris_all[tri_ids]),
+        tri_ids=tri_ids.astype(np.int64),
+        sphere_center=sphere_center,
+        sphere_radius=sphere_radius,
+        hull_vertices=_hull_vertices(vertices),
+    )

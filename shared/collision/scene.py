@@ -1,0 +1,476 @@
+"""Scene collision checks: the robot at q among the cell's objects (seed 002's hybrid hierarchy).
+
+``SceneModel`` is built once per cell and never mutated; ``SceneData`` is one caller's working
+state (pinocchio data, coherence caches, output buffers). Typical use::
+
+    model = SceneModel.from_cell(cell)
+    data = model.new_data()                 # one per user/thread (or let check() use a per-thread one)
+    report = model.check(q, data=data)      # colliding?, which bodies, which triangles, distances
+    report.colliding, report.pairs, report.min_distance, report.distance("link6", "peg")
+
+Bodies are named ``link0`` .. ``link{dof}`` (link 0 is the base) and by the cell's object names.
+Pairs checked: robot links that are not adjacent in the chain and not declared always in
+contact, every link with every object, and object pairs where at least one object is movable.
+Object pairs that already interfere in the cell as loaded (the peg resting on the floor of its
+hole) are *resting contacts*: they are skipped unless ``object_poses`` moves one of them.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal, NamedTuple
+
+import numpy as np
+
+from shared.collision import kernels
+from shared.collision.mesh_model import BodyMesh, body_mesh
+from shared.collision.obb_tree import OBBTree, build_obb_tree
+from shared.errors import InputError, UnknownNameError
+
+DistanceSelection = Literal["all", "none"] | Iterable[str | tuple[str, str]] | None
+
+_INITIAL_TRI_CAPACITY = 4096
+
+
+class InterferingPair(NamedTuple):
+    """Two bodies whose surfaces meet, with the ids of their interfering triangles (sorted,
+    unique; ids index the body's mesh faces, see ``SceneModel.mesh``)."""
+
+    a: str
+    b: str
+    tris_a: np.ndarray
+    tris_b: np.ndarray
+
+
+@dataclass(frozen=True)
+class PairDistance:
+    """Separation of two bodies: ``distance`` (m, 0 when they interfere) and the closest points
+    in the world frame (``nan`` when they interfere: no unique witness pair)."""
+
+    a: str
+    b: str
+    distance: float
+    point_a: np.ndarray
+    point_b: np.ndarray
+
+    @property
+    def colliding(self) -> bool:
+        return self.distance == 0.0
+
+
+@dataclass(frozen=True)
+class CollisionReport:
+    """The answer of one scene check.
+
+    ``colliding``: any checked pair interferes. ``pairs``: the interfering body pairs with their
+    triangle ids. ``triangle_pairs[(a, b)]``: the (k, 2) interfering triangle id pairs.
+    ``min_distance`` / ``nearest``: over the pairs whose distance was asked (``None`` if none);
+    ``distances[(a, b)]`` per pair (use ``distance(a, b)`` for an order-free lookup).
+    """
+
+    colliding: bool
+    pairs: tuple[InterferingPair, ...]
+    triangle_pairs: dict[tuple[str, str], np.ndarray]
+    min_distance: float | None
+    nearest: PairDistance | None
+    _names: tuple[tuple[str, str], ...] = field(repr=False)
+    _dist: np.ndarray = field(repr=False)
+    _pa: np.ndarray = field(repr=False)
+    _pb: np.ndarray = field(repr=False)
+    _asked: np.ndarray = field(repr=False)
+
+    @cached_property
+    def distances(self) -> dict[tuple[str, str], PairDistance]:
+        return {self._names[p]: self._pair_distance(p) for p in np.flatnonzero(self._asked)}
+
+    def _pair_distance(self, p: int) -> PairDistance:
+        a, b = self._names[p]
+        return PairDistance(a, b, float(self._dist[p]), self._pa[p].copy(), self._pb[p].copy())
+
+    def distance(self, a: str, b: str) -> PairDistance:
+        """Distance between bodies ``a`` and ``b`` (either order; swaps the points to match)."""
+        d = self.distances
+        if (a, b) in d:
+            return d[(a, b)]
+        if (b, a) in d:
+            r = d[(b, a)]
+            return PairDistance(a, b, r.distance, r.point_b, r.point_a)
+        raise UnknownNameError("pair with a distance", f"{a}/{b}", [f"{x}/{y}" for x, y in d])
+
+    def interfering_triangles(self, body: str) -> np.ndarray:
+        """Sorted ids of ``body``'s triangles that interfere with anything (for red painting)."""
+        ids = [p.tris_a for p in self.pairs if p.a == body] + [p.tris_b for p in self.pairs if p.b == body]
+        return np.unique(np.concatenate(ids)) if ids else np.zeros(0, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class Body:
+    name: str
+    kind: Literal["link", "object"]
+    index: int  # link index, or index in cell.objects
+    mesh: BodyMesh
+    tree: OBBTree
+
+
+@dataclass(frozen=True)
+class PackedScene:
+    """All bodies' hierarchies in flat arrays for the compiled kernel (see ``kernels``)."""
+
+    arrays: tuple[np.ndarray, ...]
+    max_depth: int
+
+    @classmethod
+    def pack(cls, trees: list[OBBTree]) -> PackedScene:
+        node_off = np.cumsum([0] + [t.n_nodes for t in trees])
+        tri_off = np.cumsum([0] + [len(t.tris) for t in trees])
+        hull_off = np.cumsum([0] + [len(t.hull_vertices) for t in trees])
+
+        def shifted(arr: np.ndarray, off: int) -> np.ndarray:
+            return np.where(arr >= 0, arr + off, -1)
+
+        nc = np.concatenate([t.center for t in trees])
+        nax = np.concatenate([t.axes for t in trees])
+        nh = np.concatenate([t.half for t in trees])
+        nrad = np.concatenate([t.radius for t in trees])
+        nl = np.concatenate([shifted(t.left, node_off[k]) for k, t in enumerate(trees)])
+        nr = np.concatenate([shifted(t.right, node_off[k]) for k, t in enumerate(trees)])
+        nts = np.concatenate([shifted(t.tri_start, tri_off[k]) for k, t in enumerate(trees)])
+        ntc = np.concatenate([t.tri_count for t in trees])
+        tv = np.concatenate([t.tris for t in trees])
+        tid = np.concatenate([t.tri_ids for t in trees])
+        broot = node_off[:-1].astype(np.int64)
+        bsc = np.array([t.sphere_center for t in trees])
+        bsr = np.array([t.sphere_radius for t in trees])
+        hv = np.concatenate([t.hull_vertices for t in trees])
+        hs = hull_off[:-1].astype(np.int64)
+        hn = np.array([len(t.hull_vertices) for t in trees], dtype=np.int64)
+        arrays = tuple(
+            _frozen(np.ascontiguousarray(a))
+            for a in (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn)
+        )
+        return cls(arrays, max(t.depth for t in trees))
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+class SceneData:
+    """One caller's working state for ``SceneModel.check`` (not shared between threads)."""
+
+    def __init__(self, model: SceneModel) -> None:
+        n_b, n_p = len(model.bodies), len(model.pair_names)
+        self.robot_data = model.robot.new_data() if model.robot is not None else None
+        self.lb = np.zeros(n_p)
+        self.wit = np.full((n_p, 2), -1, dtype=np.int64)
+        self.R_prev = np.zeros((n_b, 3, 3))
+        self.t_prev = np.zeros((n_b, 3))
+        self.have_prev = False
+        self.out_p = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
+        self.out_a = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
+        self.out_b = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
+        self.stats = np.zeros(kernels.N_STATS, dtype=np.int64)
+        self.mode_cache: dict[object, np.ndarray] = {}
+
+    def reset(self) -> None:
+        """Forget coherence (the next check starts cold)."""
+        self.have_prev = False
+        self.lb[:] = 0.0
+        self.wit[:] = -1
+
+
+class SceneModel:
+    """Immutable collision model of a robot and a set of rigid objects."""
+
+    def __init__(
+        self,
+        bodies: list[Body],
+        pairs: list[tuple[int, int]],
+        robot=None,
+        world_T_base: np.ndarray | None = None,
+        object_poses: Mapping[str, np.ndarray] | None = None,
+        resting: Iterable[tuple[str, str]] = (),
+        source: str = "",
+    ) -> None:
+        if not bodies:
+            raise InputError("a collision scene needs at least one body with geometry")
+        self.bodies = tuple(bodies)
+        self.body_names = tuple(b.name for b in bodies)
+        self._index = {n: i for i, n in enumerate(self.body_names)}
+        self.pairs = _frozen(np.array(pairs, dtype=np.int64).reshape(-1, 2))
+        self.pair_names = tuple((self.body_names[a], self.body_names[b]) for a, b in pairs)
+        self._pair_index = {frozenset(n): p for p, n in enumerate(self.pair_names)}
+        self.robot = robot
+        self.world_T_base = np.eye(4) if world_T_base is None else np.array(world_T_base, dtype=float)
+        self.link_bodies = tuple(i for i, b in enumerate(bodies) if b.kind == "link")
+        self.link_indices = np.array([b.index for b in bodies if b.kind == "link"], dtype=np.int64)
+        self.object_bodies = tuple(i for i, b in enumerate(bodies) if b.kind == "object")
+        self.default_object_poses = {k: np.array(v, dtype=float) for k, v in (object_poses or {}).items()}
+        self.resting_pairs = frozenset(frozenset(r) for r in resting)
+        self.source = source
+        self.packed = PackedScene.pack([b.tree for b in bodies])
+        self._local = threading.local()
+        self._base_mode = np.ones(len(pairs), dtype=np.int8)
+
+    # -- construction --------------------------------------------------------------------------
+    @classmethod
+    def from_cell(cls, cell, leaf_size: int = 1, object_pairs: Literal["none", "movable", "all"] = "movable") -> SceneModel:
+        """Build the hierarchies of the cell's robot links and objects (once)."""
+        if object_pairs not in ("none", "movable", "all"):
+            raise InputError(f"object_pairs must be one of 'none', 'movable', 'all', got {object_pairs!r}")
+        robot = cell.robot
+        bodies: list[Body] = []
+        for link in range(robot.dof + 1):
+            mesh = body_mesh(f"link{link}", robot.shapes.get(link, ()))
+            if mesh is not None:
+                bodies.append(Body(f"link{link}", "link", link, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+        for k, obj in enumerate(cell.objects):
+            mesh = body_mesh(obj.name, obj.shapes)
+            if mesh is not None:
+                bodies.append(Body(obj.name, "object", k, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+        skip = {frozenset((i, i + 1)) for i in range(robot.dof)}
+        skip |= {frozenset(p) for p in robot.description.always_in_contact}
+        pairs: list[tuple[int, int]] = []
+        object_pair_ids: list[int] = []
+        for i, bi in enumerate(bodies):
+            for j in range(i + 1, len(bodies)):
+                bj = bodies[j]
+                if bi.kind == "link" and bj.kind == "link":
+                    if frozenset((bi.index, bj.index)) in skip:
+                        continue
+                elif bi.kind == "object" and bj.kind == "object":
+                    oi, oj = cell.objects[bi.index], cell.objects[bj.index]
+                    if object_pairs == "none" or (object_pairs == "movable" and not (oi.movable or oj.movable)):
+                        continue
+                    object_pair_ids.append(len(pairs))
+                pairs.append((i, j))
+        poses = {o.name: o.world_T_object for o in cell.objects}
+        model = cls(bodies, pairs, robot, cell.world_T_base, poses, source=cell.source)
+        if object_pair_ids:  # find the resting contacts in the cell as loaded
+            mode = np.zeros(len(pairs), dtype=np.int8)
+            mode[object_pair_ids] = 1
+            raw = model._run(model._world_poses(cell.q_home, None), mode, model.new_data(), first_only=True)
+            resting = [model.pair_names[p] for p in object_pair_ids if raw[0][p]]
+            model.resting_pairs = frozenset(frozenset(r) for r in resting)
+        return model
+
+    # -- per-caller state ----------------------------------------------------------------------
+    def new_data(self) -> SceneData:
+        return SceneData(self)
+
+    def _data(self, data: SceneData | None) -> SceneData:
+        if data is not None:
+            return data
+        cached = getattr(self._local, "data", None)
+        if cached is None:
+            cached = self._local.data = self.new_data()
+        return cached
+
+    # -- names -----------------------------------------------------------------------------------
+    def body(self, name: str) -> Body:
+        try:
+            return self.bodies[self._index[name]]
+        except KeyError:
+            raise UnknownNameError("body", name, self.body_names) from None
+
+    def mesh(self, name: str) -> BodyMesh:
+        """The body's mesh in its own frame; reported triangle ids index ``mesh.faces``."""
+        return self.body(name).mesh
+
+    def pair_index(self, a: str, b: str) -> int:
+        for n in (a, b):
+            if n not in self._index:
+                raise UnknownNameError("body", n, self.body_names)
+        try:
+            return self._pair_index[frozenset((a, b))]
+        except KeyError:
+            raise UnknownNameError("checked pair", f"{a}/{b}", [f"{x}/{y}" for x, y in self.pair_names]) from None
+
+    # -- poses -----------------------------------------------------------------------------------
+    def _world_poses(self, q, object_poses: Mapping[str, np.ndarray] | None, data: SceneData | None = None) -> np.ndarray:
+        out = np.empty((len(self.bodies), 4, 4))
+        if self.link_bodies:
+            if q is None:
+                raise InputError("a joint vector is needed to place the robot's links")
+            q = self.robot.as_q(q)
+            poses = self.robot.link_poses(q, data.robot_data if data is not None else None)
+            out[list(self.link_bodies)] = self.world_T_base @ poses[self.link_indices]
+        overrides = object_poses or {}
+        for name in overrides:
+            if name not in self.default_object_poses and name not in self._index:
+                raise UnknownNameError("object", name, self.default_object_poses)
+        for i in self.object_bodies:
+            name = self.bodies[i].name
+            pose = overrides.get(name)
+            if pose is None:
+                pose = self.default_object_poses.get(name, np.eye(4))
+            else:
+                pose = np.asarray(pose, dtype=float)
+                if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+                    raise InputError(f"pose of object {name!r} must be a finite (4, 4) transform")
+            out[i] = pose
+        return out
+
+    def body_poses(self, q, object_poses: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        """``world_T_body`` of every body at ``q`` (and the given object poses)."""
+        poses = self._world_poses(q, object_poses)
+        return {n: poses[i] for i, n in enumerate(self.body_names)}
+
+    # -- pair selection ----------------------------------------------------------------------------
+    def _mode(self, data: SceneData, distances: DistanceSelection, skip, moved: frozenset[str]) -> np.ndarray:
+        if isinstance(distances, str):
+            if distances not in ("all", "none"):
+                raise InputError(f"distances must be 'all', 'none' or a list of body names or pairs, got {distances!r}")
+            dkey: object = distances
+        elif distances is None or distances is False:
+            dkey = "none"
+        elif distances is True:
+            dkey = "all"
+        else:
+            dkey = tuple(d if isinstance(d, str) else tuple(d) for d in distances)
+        skey = tuple(tuple(s) for s in skip)
+        rest = tuple(sorted(n for n in moved if any(n in r for r in self.resting_pairs)))
+        key = (dkey, skey, rest)
+        mode = data.mode_cache.get(key)
+        if mode is not None:
+            return mode
+        mode = self._base_mode.copy()
+        if dkey == "all":
+            mode[:] = 2
+        elif dkey != "none":
+            for item in dkey:
+                if isinstance(item, str):
+                    self.body(item)
+                    for p, (a, b) in enumerate(self.pair_names):
+                        if item in (a, b):
+                            mode[p] = 2
+                else:
+                    mode[self.pair_index(*item)] = 2
+        for s in skey:
+            mode[self.pair_index(*s)] = 0
+        for p, names in enumerate(self.pair_names):
+            fs = frozenset(names)
+            if fs in self.resting_pairs and not (fs & moved):
+                mode[p] = 0
+        mode.flags.writeable = False
+        if len(data.mode_cache) > 64:
+            data.mode_cache.clear()
+        data.mode_cache[key] = mode
+        return mode
+
+    # -- the check -----------------------------------------------------------------------------------
+    def _run(self, world: np.ndarray, mode: np.ndarray, data: SceneData, first_only: bool = False):
+        Rw = np.ascontiguousarray(world[:, :3, :3])
+        tw = np.ascontiguousarray(world[:, :3, 3])
+        n_p = len(self.pair_names)
+        hit = np.zeros(n_p, dtype=np.bool_)
+        dist = np.empty(n_p)
+        wpa = np.empty((n_p, 3))
+        wpb = np.empty((n_p, 3))
+        while True:
+            n_out = kernels.scene_check(
+                *self.packed.arrays, Rw, tw, self.pairs, mode, not first_only,
+                data.lb, data.wit, data.R_prev, data.t_prev, data.have_prev,
+                hit, dist, wpa, wpb, data.out_p, data.out_a, data.out_b, data.stats,
+            )
+            data.have_prev = True
+            if n_out <= len(data.out_p):
+                return hit, dist, wpa, wpb, n_out
+            cap = int(2 * n_out)
+            data.out_p = np.empty(cap, dtype=np.int64)
+            data.out_a = np.empty(cap, dtype=np.int64)
+            data.out_b = np.empty(cap, dtype=np.int64)
+
+    def check(
+        self,
+        q,
+        *,
+        object_poses: Mapping[str, np.ndarray] | None = None,
+        distances: DistanceSelection = "all",
+        skip: Iterable[tuple[str, str]] = (),
+        triangles: bool = True,
+        data: SceneData | None = None,
+    ) -> CollisionReport:
+        """Check the robot at ``q`` (radians) among the objects.
+
+        ``object_poses``: ``world_T_object`` overrides by name (a carried or displaced object).
+        ``distances``: ``"all"`` pairs, ``"none"``, or body names (every pair involving them) and
+        ``(a, b)`` pairs; distances cost more than the yes/no answer. ``skip``: body pairs to
+        leave out of this check (e.g. a held object and the gripper). ``triangles=False`` stops
+        at the first interfering triangle pair of each body pair (faster when only the answer
+        and the pairs are needed).
+        """
+        data = self._data(data)
+        world = self._world_poses(q, object_poses, data)
+        moved = frozenset(object_poses) if object_poses else frozenset()
+        mode = self._mode(data, distances, skip, moved)
+        return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
+
+    def check_world(
+        self,
+        world_T_body: Mapping[str, np.ndarray] | np.ndarray,
+        *,
+        distances: DistanceSelection = "all",
+        skip: Iterable[tuple[str, str]] = (),
+        triangles: bool = True,
+        data: SceneData | None = None,
+    ) -> CollisionReport:
+        """Like ``check`` with every body's world pose given: a ``(n_bodies, 4, 4)`` array in
+        ``body_names`` order, or a mapping name -> pose (missing objects at their cell pose)."""
+        data = self._data(data)
+        if isinstance(world_T_body, Mapping):
+            world = self._world_poses(None, None) if not self.link_bodies else np.empty((len(self.bodies), 4, 4))
+            missing = [n for n in self.body_names if n not in world_T_body and self.bodies[self._index[n]].kind == "link"]
+            if missing:
+                raise InputError(f"poses missing for bodies {missing}")
+            for i, n in enumerate(self.body_names):
+                if n in world_T_body:
+                    world[i] = world_T_body[n]
+                else:
+                    world[i] = self.default_object_poses.get(n, np.eye(4))
+            moved = frozenset(n for n in world_T_body if self.bodies[self._index[n]].kind == "object")
+        else:
+            world = np.asarray(world_T_body, dtype=float)
+            if world.shape != (len(self.bodies), 4, 4):
+                raise InputError(f"expected ({len(self.bodies)}, 4, 4) poses, got {world.shape}")
+            moved = frozenset(self.body_names[i] for i in self.object_bodies)
+        mode = self._mode(data, distances, skip, moved)
+        return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
+
+    def _report(self, data: SceneData, hit, dist, wpa, wpb, n_out, mode) -> CollisionReport:
+        asked = mode == 2
+        pairs: list[InterferingPair] = []
+        tri_pairs: dict[tuple[str, str], np.ndarray] = {}
+        data_hits = np.flatnonzero(hit)
+        if len(data_hits):
+            order = data.out_p[:n_out]
+            for p in data_hits:
+                sel = order == p
+                tp = np.column_stack([data.out_a[:n_out][sel], data.out_b[:n_out][sel]])
+                a, b = self.pair_names[p]
+                tri_pairs[(a, b)] = tp
+                pairs.append(InterferingPair(a, b, np.unique(tp[:, 0]), np.unique(tp[:, 1])))
+        min_distance = None
+        nearest = None
+        if asked.any():
+            masked = np.where(asked, dist, np.inf)
+            p = int(np.argmin(masked))
+            min_distance = float(masked[p])
+            a, b = self.pair_names[p]
+            nearest = PairDistance(a, b, min_distance, wpa[p].copy(), wpb[p].copy())
+        return CollisionReport(
+            colliding=bool(hit.any()),
+            pairs=tuple(pairs),
+            triangle_pairs=tri_pairs,
+            min_distance=min_distance,
+            nearest=nearest,
+            _names=self.pair_names,
+            _dist=dist,
+            _pa=wpa,
+            _pb=wpb,
+            _asked=asked,
+        )
