@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from conftest import PROJECT_DIR, start_console, stop_process
+from support import PROJECT_DIR, start_console, stop_process
 
 
 def test_up_opens_another_cell(tmp_path) -> None:
