@@ -1,0 +1,1 @@
+"""The teleprogramming language: statement models, parser, formatter and checks."""

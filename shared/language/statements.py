@@ -1,0 +1,215 @@
+"""The statements of the teleprogramming language: one typed definition each.
+
+These models are the JSON form of a program (a list of statements, each an object with a
+``"kind"``), the body of command units on the wire, and what the interpreter executes. Values are
+SI: lengths in metres, angles in radians, speeds in m/s, rad/s or a fraction of the robot's
+maximum, forces in newtons, times in seconds. The text form (``shared.language.parser`` and
+``shared.language.formatter``) is where millimetres, degrees and percent appear.
+
+Kinds:
+
+========  ======================================  ==========================================
+kind      text form                               what it does
+========  ======================================  ==========================================
+MOVE      ``MOVE (q1, ..., qn) deg``              joint-interpolated move to a full joint vector
+DRIVE     ``DRIVE J3 TO -30 deg``                 one joint to an angle
+DRAW      ``DRAW TO (x, y, z) mm IN WORK``        straight line, position only
+ROTATE    ``ROTATE TO (r, p, y) deg IN WORK``     orientation only (fixed-axis XYZ roll-pitch-yaw)
+MOVES     ``MOVES TO (x,y,z) mm (r,p,y) deg``     straight line, position and orientation
+SPEED     ``SPEED 50 %``                          speed of the following actions
+MODE      ``MODE FORCE`` / ``MODE POSITION``      control mode of the following actions
+EVENT     ``EVENT name``                          a named mark the robot reports when reached
+TASK      ``TASK insert_peg(PEG, HOLE1)``         a task the robot already knows
+========  ======================================  ==========================================
+
+MOVE, DRIVE, DRAW, ROTATE and MOVES are *actions* and may carry ``WITH SPEED ...`` and
+``UNTIL ...``; SPEED, MODE and EVENT are *parameter* statements; TASK is a *task call*.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator
+
+Vec3 = tuple[float, float, float]
+
+
+class Frame(str, Enum):
+    """Frames a Cartesian target may be given in (see ``shared/CONVENTIONS.md``)."""
+
+    WORLD = "WORLD"
+    BASE = "BASE"
+    WORK = "WORK"
+    TOOL = "TOOL"
+
+
+DEFAULT_FRAME = Frame.WORLD
+"""Frame of a Cartesian target written without ``IN``."""
+
+
+class SpeedUnit(str, Enum):
+    """Units of a speed value: a fraction of the robot's maximum, or an absolute rate."""
+
+    FRACTION = "fraction"  # text: percent; 0.2 here is "20 %"
+    M_PER_S = "m/s"  # text: mm/s
+    RAD_PER_S = "rad/s"  # text: deg/s
+
+
+class Mode(str, Enum):
+    POSITION = "POSITION"
+    FORCE = "FORCE"
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Speed(_Model):
+    """A speed: ``value`` in ``unit``; a fraction is in (0, 1]."""
+
+    value: float = Field(gt=0.0)
+    unit: SpeedUnit
+
+    @field_validator("value")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if v != v or v in (float("inf"), float("-inf")):
+            raise ValueError("speed must be a finite number")
+        return v
+
+
+class UntilForce(_Model):
+    """Stop when the magnitude of the measured force exceeds ``newtons``."""
+
+    kind: Literal["force"] = "force"
+    newtons: float = Field(gt=0.0)
+
+
+class UntilContact(_Model):
+    """Stop at the first contact the robot senses."""
+
+    kind: Literal["contact"] = "contact"
+
+
+class UntilTime(_Model):
+    """Stop after ``seconds`` of motion."""
+
+    kind: Literal["time"] = "time"
+    seconds: float = Field(gt=0.0)
+
+
+Until = Annotated[Union[UntilForce, UntilContact, UntilTime], Field(discriminator="kind")]
+
+
+class _Action(_Model):
+    """Fields every action has: an optional speed and an optional stop condition."""
+
+    speed: Speed | None = None
+    until: Until | None = None
+
+
+class Move(_Action):
+    """Joint-interpolated move to a full joint vector (radians)."""
+
+    kind: Literal["MOVE"] = "MOVE"
+    joints: tuple[float, ...] = Field(min_length=1)
+
+
+class Drive(_Action):
+    """Move one joint (1-based number) to ``target`` (radians)."""
+
+    kind: Literal["DRIVE"] = "DRIVE"
+    joint: int = Field(ge=1)
+    target: float
+
+
+class Draw(_Action):
+    """Straight-line move of the tool point to ``position`` (metres in ``frame``); orientation kept."""
+
+    kind: Literal["DRAW"] = "DRAW"
+    position: Vec3
+    frame: Frame = DEFAULT_FRAME
+
+
+class Rotate(_Action):
+    """Rotate the tool in place to ``rpy`` (fixed-axis XYZ roll, pitch, yaw; radians in ``frame``)."""
+
+    kind: Literal["ROTATE"] = "ROTATE"
+    rpy: Vec3
+    frame: Frame = DEFAULT_FRAME
+
+
+class Moves(_Action):
+    """Straight-line move to a full tool pose: ``position`` (m) and ``rpy`` (rad) in ``frame``."""
+
+    kind: Literal["MOVES"] = "MOVES"
+    position: Vec3
+    rpy: Vec3
+    frame: Frame = DEFAULT_FRAME
+
+
+class SetSpeed(_Model):
+    """Speed of the actions that follow (until the next SPEED)."""
+
+    kind: Literal["SPEED"] = "SPEED"
+    speed: Speed
+
+
+class SetMode(_Model):
+    """Control mode of the actions that follow."""
+
+    kind: Literal["MODE"] = "MODE"
+    mode: Mode
+
+
+class Event(_Model):
+    """A named mark; the robot reports it when execution reaches it."""
+
+    kind: Literal["EVENT"] = "EVENT"
+    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+class TaskCall(_Model):
+    """A task the robot knows, by name, with object or feature names as arguments."""
+
+    kind: Literal["TASK"] = "TASK"
+    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+    args: tuple[str, ...] = ()
+
+
+Action = Union[Move, Drive, Draw, Rotate, Moves]
+Parameter = Union[SetSpeed, SetMode, Event]
+Statement = Annotated[
+    Union[Move, Drive, Draw, Rotate, Moves, SetSpeed, SetMode, Event, TaskCall], Field(discriminator="kind")
+]
+
+ACTION_KINDS = frozenset({"MOVE", "DRIVE", "DRAW", "ROTATE", "MOVES"})
+PARAMETER_KINDS = frozenset({"SPEED", "MODE", "EVENT"})
+TASK_KINDS = frozenset({"TASK"})
+
+statement_adapter: TypeAdapter[Statement] = TypeAdapter(Statement)
+program_adapter: TypeAdapter[list[Statement]] = TypeAdapter(list[Statement])
+
+
+def is_action(statement: object) -> bool:
+    return getattr(statement, "kind", None) in ACTION_KINDS
+
+
+def is_parameter(statement: object) -> bool:
+    return getattr(statement, "kind", None) in PARAMETER_KINDS
+
+
+def is_task(statement: object) -> bool:
+    return getattr(statement, "kind", None) in TASK_KINDS
+
+
+def program_to_json(statements: list[Statement]) -> list[dict]:
+    """The JSON form of a program: one object per statement, SI values, no ``None`` fields."""
+    return [s.model_dump(mode="json", exclude_none=True) for s in statements]
+
+
+def program_from_json(data: object) -> list[Statement]:
+    """Validate the JSON form (already decoded); raises ``pydantic.ValidationError``."""
+    return program_adapter.validate_python(data)

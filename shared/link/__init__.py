@@ -1,0 +1,1 @@
+"""The delayed link's core: sans-I/O, explicit timestamps in, deliveries out."""

@@ -1,0 +1,1 @@
+"""Interpreter and trajectory planner: the code both the preview and the telerobot execute."""

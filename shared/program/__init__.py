@@ -1,0 +1,1 @@
+"""Programs as the operator builds them: the editor state machine and automatic generation."""

@@ -1,0 +1,1 @@
+"""Wire protocol between console and telerobot: messages, unit framing, telemetry layout."""
