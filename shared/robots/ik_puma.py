@@ -54,8 +54,10 @@ STRUCTURE_TOLERANCE = 1e-9
 REACH_TOLERANCE = 1e-10
 #: below this (m) the wrist centre is on the joint-1 axis (shoulder singularity, h = 0)
 SHOULDER_SINGULAR = 1e-12
-#: below this |sin theta5| the wrist is singular and q4 is set to the representative
-WRIST_SINGULAR = 1e-12
+#: below this |sin theta5| the wrist is singular and q4 is set to the representative (rounding
+#: in the arm solution alone reaches ~1e-10 near q5 = pi; the orientation error of fixing q4 here is
+#: below 1e-9 rad)
+WRIST_SINGULAR = 1e-9
 
 _TWO_PI = 2.0 * math.pi
 

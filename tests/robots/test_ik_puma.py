@@ -172,13 +172,22 @@ def test_wrist_singularity_uses_the_requested_q4() -> None:
 
 def test_near_wrist_singularity_is_exact() -> None:
     robot = puma()
-    for q5 in (1e-11, 1e-9, 1e-7, 1e-5):
+    # just above WRIST_SINGULAR the wrist is regular: all eight solutions, each exact
+    for q5 in (1e-8, 1e-7, 1e-5):
         q = np.radians([20.0, -30.0, 40.0, 50.0, 0.0, 60.0])
         q[4] = q5
         target = robot.fk(q).copy()
         solutions = solve_ik(robot, target, respect_limits=False)
         assert len(solutions) == 8
         assert_all_reproduce(robot, solutions, target)
+    # below it the wrist counts as singular (one representative per arm configuration), and
+    # the representatives still reproduce the target
+    q = np.radians([20.0, -30.0, 40.0, 50.0, 0.0, 60.0])
+    q[4] = 1e-11
+    target = robot.fk(q).copy()
+    solutions = solve_ik(robot, target, respect_limits=False)
+    assert 4 <= len(solutions) < 8
+    assert_all_reproduce(robot, solutions, target)
 
 
 def test_elbow_fully_stretched_gives_one_elbow_solution() -> None:
