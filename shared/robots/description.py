@@ -38,6 +38,20 @@ class DHJoint:
 
 
 @dataclass(frozen=True)
+class UrdfJoint:
+    """One revolute joint of a URDF robot (radians): its name, range, the links it joins and
+    its axis in the child link's frame. URDF robots have no DH parameters; their kinematics
+    live in the pinocchio model built from the file."""
+
+    name: str
+    lower: float
+    upper: float
+    parent_link: str = ""
+    child_link: str = ""
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
 class LinkShape:
     """A collision/display shape fixed to a link, posed by ``link_T_shape`` (4, 4).
 
@@ -63,7 +77,7 @@ class RobotDescription:
     name: str
     source: str
     convention: DHConvention | None  # None for URDF robots
-    joints: tuple[DHJoint, ...]
+    joints: tuple[DHJoint | UrdfJoint, ...]  # UrdfJoint only when convention is None
     flange_T_tool: np.ndarray  # fixed transform after the last joint frame (4, 4)
     ik: IKKind
     # geometry per link index: 0 is the base, i is the link moved by joint i

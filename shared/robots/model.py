@@ -5,8 +5,8 @@
 ``robot.new_data()``, or lets the robot use a per-thread default.
 
 Frames: ``base`` is frame 0 of the robot's DH table (or the URDF root); ``tool`` is the robot's
-tool point (PUMA: DH frame 6, the flange; rover: point C); link ``i`` is the body moved by
-joint ``i`` (link 0 is the base).
+tool point (PUMA: DH frame 6, the flange; rover: point C; URDF: the tool link's frame, see
+``shared.robots.urdf``); link ``i`` is the body moved by joint ``i`` (link 0 is the base).
 """
 
 from __future__ import annotations
