@@ -57,6 +57,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # the reader of our output went away (e.g. `| head`): nothing left to say to it
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":

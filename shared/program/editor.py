@@ -1,0 +1,562 @@
+"""The program editor of thesis §4.3.6 as a pure, typed state machine.
+
+:class:`ProgramState` is an immutable value: the real statements, which one is selected, and
+whether a preview is running. Every operation is a method that returns either a new state (or a
+small result holding one) or a :class:`~shared.program.rules.Refusal` naming the rule that
+stood in the way; the old state is never changed. :class:`Editor` holds the current state and
+the undo/redo history, so the console keeps one per operator and the robot never sees it.
+
+Why this shape: the console, its tests and a replay of an operator session all need the same
+answer to "may I do this here?", and an immutable state makes undo exact (the history holds the
+very states, not inverse operations that could drift).
+
+Representation: the trailing empty statement is not stored; ``statements`` holds the real
+statements and the empty one sits at index ``len(statements)``. ``entries`` shows the program
+the way §4.3.6 describes it, empty statement included. Indices in the API are 0-based; the
+sentences of refusals number statements from 1, as the operator sees them.
+
+"Just before the trailing empty statement" is read literally, as in the thesis: an action can be
+deleted, or have its own parameters changed, only when no statement at all (not even a SPEED)
+stands between it and the empty statement. This is what keeps continuity without the editor
+knowing any robot state, and it matches where actions and task calls may be inserted.
+
+The order in which an operation's rules are tested (and so which rule a refusal names when
+several apply) is: preview lock, then what the selected statement is, then what the new
+statement is, then where it is.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Final
+
+from shared.errors import InputError
+from shared.language.statements import Speed, Statement, Until, is_action, is_parameter, is_task
+from shared.program.rules import Refusal, Rule, program_violations
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "EMPTY",
+    "KEEP",
+    "Editor",
+    "EmptyStatement",
+    "PreviewStarted",
+    "ProgramState",
+    "Refusal",
+    "Rule",
+    "Submission",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class EmptyStatement:
+    """The statement that holds no information; every program ends with exactly one."""
+
+    kind: str = "EMPTY"
+
+    def __repr__(self) -> str:
+        return "EMPTY"
+
+
+EMPTY: Final = EmptyStatement()
+
+
+class _Keep:
+    """Marker for "leave this condition as it is" in :meth:`ProgramState.modify_conditions`."""
+
+    _instance: _Keep | None = None
+
+    def __new__(cls) -> _Keep:
+        if cls._instance is None:
+            cls._instance = super().__new__(cls)
+        return cls._instance
+
+    def __repr__(self) -> str:
+        return "KEEP"
+
+
+KEEP: Final = _Keep()
+
+
+def _is_real(statement: object) -> bool:
+    return is_action(statement) or is_parameter(statement) or is_task(statement)
+
+
+def _action_body(statement: Statement) -> Statement:
+    """The action without its conditions: what §4.3.6 calls the action's own parameters."""
+    return statement.model_copy(update={"speed": None, "until": None})
+
+
+def _describe(statement: object) -> str:
+    return getattr(statement, "kind", type(statement).__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class Submission:
+    """What a submission hands over: the statements for the robot, and the program left."""
+
+    statements: tuple[Statement, ...]
+    state: ProgramState
+
+
+@dataclass(frozen=True, slots=True)
+class PreviewStarted:
+    """A preview of ``statements[start:stop]``; ``state`` is locked until :meth:`end_preview`."""
+
+    start: int
+    stop: int
+    statements: tuple[Statement, ...]
+    state: ProgramState
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramState:
+    """The program being edited: real statements, then the implicit trailing empty statement.
+
+    ``selected`` is an index into :attr:`entries` (``len(statements)`` is the empty statement,
+    the default). ``preview`` is the ``(start, stop)`` range being previewed, or ``None``.
+    Construction checks the invariants and raises :class:`~shared.errors.InputError` on a
+    program that breaks them (a statement after a task call, a selection out of range).
+    """
+
+    statements: tuple[Statement, ...] = ()
+    selected: int | None = None
+    preview: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        statements = tuple(self.statements)
+        object.__setattr__(self, "statements", statements)
+        for index, statement in enumerate(statements):
+            if not _is_real(statement):
+                raise InputError(
+                    f"statement {index + 1}: a program holds real statements only, got {_describe(statement)}"
+                )
+        violations = program_violations(statements)
+        if violations:
+            raise InputError(violations[0].message)
+        if self.selected is None:
+            object.__setattr__(self, "selected", len(statements))
+        elif not 0 <= self.selected <= len(statements):
+            raise InputError(f"selection {self.selected} is outside the program (0..{len(statements)})")
+        if self.preview is not None:
+            start, stop = self.preview
+            if not 0 <= start < stop <= len(statements):
+                raise InputError(f"preview range {start}..{stop} is outside the program")
+
+    # ---------------------------------------------------------------- reading
+
+    @classmethod
+    def of(cls, statements: Iterable[Statement], selected: int | None = None) -> ProgramState:
+        """A program from a list of statements (the empty statement is added), selection default."""
+        return cls(tuple(statements), selected)
+
+    @property
+    def entries(self) -> tuple[Statement | EmptyStatement, ...]:
+        """The program as §4.3.6 describes it: real statements, then the one empty statement."""
+        return (*self.statements, EMPTY)
+
+    @property
+    def empty_index(self) -> int:
+        """Index of the trailing empty statement."""
+        return len(self.statements)
+
+    @property
+    def selected_index(self) -> int:
+        assert self.selected is not None  # set in __post_init__
+        return self.selected
+
+    @property
+    def selected_statement(self) -> Statement | EmptyStatement:
+        return self.entries[self.selected_index]
+
+    @property
+    def previewing(self) -> bool:
+        return self.preview is not None
+
+    @property
+    def ends_with_task(self) -> bool:
+        """True when the last real statement is a task call: nothing more may be inserted after it."""
+        return bool(self.statements) and is_task(self.statements[-1])
+
+    # ---------------------------------------------------------------- selection
+
+    def select(self, index: int) -> ProgramState | Refusal:
+        """Select the statement at ``index`` (the empty statement is ``len(statements)``)."""
+        if not 0 <= index <= self.empty_index:
+            return Refusal(
+                Rule.SELECT_RANGE,
+                f"index {index} is outside the program: entries are 0..{self.empty_index} "
+                "(the last is the empty statement)",
+            )
+        return self._with(selected=index)
+
+    def select_next(self) -> ProgramState | Refusal:
+        if self.selected_index == self.empty_index:
+            return Refusal(Rule.SELECT_RANGE, "the trailing empty statement is selected; nothing follows it")
+        return self._with(selected=self.selected_index + 1)
+
+    def select_previous(self) -> ProgramState | Refusal:
+        if self.selected_index == 0:
+            return Refusal(Rule.SELECT_RANGE, "the first statement is selected; nothing precedes it")
+        return self._with(selected=self.selected_index - 1)
+
+    def select_first(self) -> ProgramState:
+        return self._with(selected=0)
+
+    def select_empty(self) -> ProgramState:
+        """Select the trailing empty statement (the default selection)."""
+        return self._with(selected=self.empty_index)
+
+    # ---------------------------------------------------------------- checks
+
+    def check_insert(self, statement: object) -> Refusal | None:
+        """Why ``statement`` cannot be inserted before the selection, or ``None`` if it can."""
+        if (locked := self._locked("insert a statement")) is not None:
+            return locked
+        if not _is_real(statement):
+            return Refusal(Rule.INSERT_REAL, f"only a real statement can be inserted, not {_describe(statement)}")
+        at_end = self.selected_index == self.empty_index
+        if is_action(statement) and not at_end:
+            return Refusal(
+                Rule.INSERT_ACTION_AT_END,
+                f"a {statement.kind} action can only be inserted before the trailing empty statement "
+                f"(statement {self.selected_index + 1} is selected); inserting it here would break action continuity",
+            )
+        if is_task(statement) and not at_end:
+            return Refusal(
+                Rule.INSERT_TASK_AT_END,
+                f"a task call can only be inserted before the trailing empty statement "
+                f"(statement {self.selected_index + 1} is selected)",
+            )
+        if at_end and self.ends_with_task:
+            return Refusal(
+                Rule.INSERT_AFTER_TASK,
+                f"nothing can be inserted after the task call {self.statements[-1].name!r}: "
+                "what a task leaves behind cannot be predicted",
+            )
+        return None
+
+    def check_delete(self) -> Refusal | None:
+        """Why the selected statement cannot be deleted, or ``None`` if it can."""
+        if (locked := self._locked("delete a statement")) is not None:
+            return locked
+        index = self.selected_index
+        if index == self.empty_index:
+            return Refusal(Rule.DELETE_EMPTY, "the trailing empty statement cannot be deleted")
+        statement = self.statements[index]
+        if is_action(statement) and index != self.empty_index - 1:
+            return Refusal(
+                Rule.DELETE_ACTION_NOT_LAST,
+                f"the {statement.kind} action (statement {index + 1}) is not just before the trailing empty statement; "
+                "deleting it would break action continuity",
+            )
+        return None
+
+    def check_modify(self, statement: object) -> Refusal | None:
+        """Why the selected statement cannot be replaced by ``statement``, or ``None`` if it can."""
+        if (locked := self._locked("modify a statement")) is not None:
+            return locked
+        index = self.selected_index
+        if index == self.empty_index:
+            return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified; insert instead")
+        old = self.statements[index]
+        if is_task(old):
+            return Refusal(Rule.MODIFY_TASK, f"the task call {old.name!r} cannot be modified; delete it instead")
+        if not _is_real(statement) or statement.kind != old.kind:
+            return Refusal(
+                Rule.MODIFY_KIND,
+                f"a modification keeps the statement's kind: statement {index + 1} is {old.kind}, "
+                f"not {_describe(statement)}",
+            )
+        if is_action(old) and index != self.empty_index - 1 and _action_body(statement) != _action_body(old):
+            return Refusal(
+                Rule.MODIFY_ACTION_PARAMETERS,
+                f"only the WITH and UNTIL conditions of the {old.kind} action (statement {index + 1}) can change; "
+                "its own parameters can change only when it is just before the trailing empty statement "
+                "(action continuity)",
+            )
+        return None
+
+    def check_submit(self, start: int, stop: int) -> Refusal | None:
+        """Why ``statements[start:stop]`` cannot be submitted, or ``None`` if it can."""
+        if (locked := self._locked("submit statements")) is not None:
+            return locked
+        if not 0 <= start < stop <= self.empty_index:
+            return Refusal(
+                Rule.SUBMIT_RANGE,
+                f"cannot submit {start}..{stop}: a submission is a non-empty range within the "
+                f"{self.empty_index} real statement(s)",
+            )
+        if start != 0:
+            return Refusal(
+                Rule.SUBMIT_PREFIX,
+                f"cannot submit from statement {start + 1}: submission starts at the first statement so that "
+                "the robot continues from where it already is",
+            )
+        return None
+
+    # ---------------------------------------------------------------- operations
+
+    def insert(self, statement: Statement) -> ProgramState | Refusal:
+        """Insert ``statement`` before the selected one; the selection stays on the same statement."""
+        if (refusal := self.check_insert(statement)) is not None:
+            return refusal
+        index = self.selected_index
+        return self._with(
+            statements=(*self.statements[:index], statement, *self.statements[index:]),
+            selected=index + 1,
+        )
+
+    def delete(self) -> ProgramState | Refusal:
+        """Delete the selected statement; the selection moves to the statement after it."""
+        if (refusal := self.check_delete()) is not None:
+            return refusal
+        index = self.selected_index
+        return self._with(statements=self.statements[:index] + self.statements[index + 1 :], selected=index)
+
+    def modify(self, statement: Statement) -> ProgramState | Refusal:
+        """Replace the selected statement by ``statement`` (same kind); the selection is kept."""
+        if (refusal := self.check_modify(statement)) is not None:
+            return refusal
+        index = self.selected_index
+        return self._with(statements=(*self.statements[:index], statement, *self.statements[index + 1 :]))
+
+    def modify_conditions(
+        self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP
+    ) -> ProgramState | Refusal:
+        """Set or clear (``None``) the WITH speed and UNTIL condition of the selected action.
+
+        Allowed for an action anywhere in the program (§4.3.6 2d). ``KEEP`` leaves one as it is.
+        """
+        if (locked := self._locked("modify a statement")) is not None:
+            return locked
+        old = self.selected_statement
+        if not is_action(old):
+            if old is EMPTY:
+                return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified")
+            return Refusal(
+                Rule.MODIFY_CONDITIONS_NOT_ACTION,
+                f"WITH and UNTIL belong to action statements; statement {self.selected_index + 1} is {old.kind}",
+            )
+        fields = dict(old)
+        if speed is not KEEP:
+            fields["speed"] = speed
+        if until is not KEEP:
+            fields["until"] = until
+        return self.modify(type(old)(**fields))
+
+    def submit(self, start: int, stop: int) -> Submission | Refusal:
+        """Take ``statements[start:stop]`` out of the program for the robot; ``start`` must be 0.
+
+        The selection stays on the same statement; if that statement was submitted, it moves to
+        the first statement left (as after a deletion).
+        """
+        if (refusal := self.check_submit(start, stop)) is not None:
+            return refusal
+        rest = self.statements[stop:]
+        left = self._with(statements=rest, selected=max(self.selected_index - stop, 0))
+        return Submission(self.statements[start:stop], left)
+
+    def submit_through(self, last: int) -> Submission | Refusal:
+        """Submit statements ``0..last`` inclusive (the console's "send up to here")."""
+        return self.submit(0, last + 1)
+
+    def begin_preview(self, start: int, stop: int) -> PreviewStarted | Refusal:
+        """Lock the program while ``statements[start:stop]`` is played; the program is unchanged."""
+        if self.preview is not None:
+            return Refusal(Rule.PREVIEW_LOCKED, "a preview is already running; end it first")
+        if not 0 <= start < stop <= self.empty_index:
+            return Refusal(
+                Rule.PREVIEW_RANGE,
+                f"cannot preview {start}..{stop}: a preview plays a non-empty range within the "
+                f"{self.empty_index} real statement(s)",
+            )
+        return PreviewStarted(start, stop, self.statements[start:stop], self._with(preview=(start, stop)))
+
+    def end_preview(self) -> ProgramState | Refusal:
+        if self.preview is None:
+            return Refusal(Rule.PREVIEW_INACTIVE, "no preview is running")
+        return self._with(preview=None)
+
+    # ---------------------------------------------------------------- helpers
+
+    def _locked(self, what: str) -> Refusal | None:
+        if self.preview is None:
+            return None
+        start, stop = self.preview
+        return Refusal(
+            Rule.PREVIEW_LOCKED,
+            f"cannot {what} while statements {start + 1}..{stop} are being previewed; only selection is allowed",
+        )
+
+    def _with(self, **changes: object) -> ProgramState:
+        values = {"statements": self.statements, "selected": self.selected, "preview": self.preview}
+        values.update(changes)
+        return ProgramState(**values)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True, slots=True)
+class _Step:
+    label: str
+    before: ProgramState
+    after: ProgramState
+
+
+class Editor:
+    """The current :class:`ProgramState` with an undo/redo history of every edit.
+
+    Edits (insert, delete, modify, modify_conditions) are recorded; undo returns to exactly the
+    state before the edit (selection included), redo to exactly the state after it. Selection
+    moves and preview start/end are not edits and are not recorded. A submission is not
+    undoable (the robot has the statements) and clears the history: nothing before it can be
+    undone either, since that would bring submitted statements back into the program.
+    """
+
+    def __init__(self, state: ProgramState | None = None, max_history: int = 1000) -> None:
+        self._state = state if state is not None else ProgramState()
+        self.max_history = max_history
+        self._undo: list[_Step] = []
+        self._redo: list[_Step] = []
+        self._submitted = False
+
+    @property
+    def state(self) -> ProgramState:
+        """The current program; it changes only through the operations below."""
+        return self._state
+
+    def __repr__(self) -> str:
+        return f"Editor({self._state!r}, undo={len(self._undo)}, redo={len(self._redo)})"
+
+    # ------------------------------------------------------------ edits
+
+    def insert(self, statement: Statement) -> ProgramState | Refusal:
+        return self._edit(f"insert {_describe(statement)}", self.state.insert(statement))
+
+    def delete(self) -> ProgramState | Refusal:
+        return self._edit(f"delete {_describe(self.state.selected_statement)}", self.state.delete())
+
+    def modify(self, statement: Statement) -> ProgramState | Refusal:
+        return self._edit(f"modify {_describe(statement)}", self.state.modify(statement))
+
+    def modify_conditions(
+        self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP
+    ) -> ProgramState | Refusal:
+        label = f"modify conditions of {_describe(self.state.selected_statement)}"
+        return self._edit(label, self.state.modify_conditions(speed, until))
+
+    def submit(self, start: int, stop: int) -> Submission | Refusal:
+        result = self.state.submit(start, stop)
+        if isinstance(result, Refusal):
+            return self._refused(result)
+        self._state = result.state
+        self._undo.clear()
+        self._redo.clear()
+        self._submitted = True
+        log.info("submitted %d statement(s); %d left", len(result.statements), len(result.state.statements))
+        return result
+
+    def submit_through(self, last: int) -> Submission | Refusal:
+        return self.submit(0, last + 1)
+
+    # ------------------------------------------------------------ not recorded
+
+    def select(self, index: int) -> ProgramState | Refusal:
+        return self._move(self.state.select(index))
+
+    def select_next(self) -> ProgramState | Refusal:
+        return self._move(self.state.select_next())
+
+    def select_previous(self) -> ProgramState | Refusal:
+        return self._move(self.state.select_previous())
+
+    def select_first(self) -> ProgramState:
+        self._state = self.state.select_first()
+        return self.state
+
+    def select_empty(self) -> ProgramState:
+        self._state = self.state.select_empty()
+        return self.state
+
+    def begin_preview(self, start: int, stop: int) -> PreviewStarted | Refusal:
+        result = self.state.begin_preview(start, stop)
+        if isinstance(result, Refusal):
+            return self._refused(result)
+        self._state = result.state
+        return result
+
+    def end_preview(self) -> ProgramState | Refusal:
+        return self._move(self.state.end_preview())
+
+    # ------------------------------------------------------------ history
+
+    @property
+    def can_undo(self) -> bool:
+        return bool(self._undo) and not self.state.previewing
+
+    @property
+    def can_redo(self) -> bool:
+        return bool(self._redo) and not self.state.previewing
+
+    @property
+    def undo_label(self) -> str | None:
+        """What undo would take back (for a menu entry), or ``None``."""
+        return self._undo[-1].label if self._undo else None
+
+    @property
+    def redo_label(self) -> str | None:
+        return self._redo[-1].label if self._redo else None
+
+    def undo(self) -> ProgramState | Refusal:
+        """Return to exactly the state before the last edit."""
+        if (locked := self.state._locked("undo")) is not None:
+            return self._refused(locked)
+        if not self._undo:
+            if self._submitted:
+                return self._refused(
+                    Refusal(
+                        Rule.UNDO_SUBMITTED,
+                        "nothing before the last submission can be undone: the robot has those statements",
+                    )
+                )
+            return self._refused(Refusal(Rule.UNDO_NOTHING, "there is nothing to undo"))
+        step = self._undo.pop()
+        self._redo.append(step)
+        self._state = step.before
+        return self.state
+
+    def redo(self) -> ProgramState | Refusal:
+        """Return to exactly the state after the last undone edit."""
+        if (locked := self.state._locked("redo")) is not None:
+            return self._refused(locked)
+        if not self._redo:
+            return self._refused(Refusal(Rule.REDO_NOTHING, "there is nothing to redo"))
+        step = self._redo.pop()
+        self._undo.append(step)
+        self._state = step.after
+        return self.state
+
+    # ------------------------------------------------------------ helpers
+
+    def _edit(self, label: str, result: ProgramState | Refusal) -> ProgramState | Refusal:
+        if isinstance(result, Refusal):
+            return self._refused(result)
+        self._undo.append(_Step(label, self.state, result))
+        if len(self._undo) > self.max_history:
+            del self._undo[0]
+        self._redo.clear()
+        self._state = result
+        return result
+
+    def _move(self, result: ProgramState | Refusal) -> ProgramState | Refusal:
+        if isinstance(result, Refusal):
+            return self._refused(result)
+        self._state = result
+        return result
+
+    @staticmethod
+    def _refused(refusal: Refusal) -> Refusal:
+        log.debug("%s", refusal)
+        return refusal
