@@ -86,6 +86,8 @@ class RobotDescription:
     urdf_path: str | None = None
     urdf_tool_frame: str | None = None
     link_names: tuple[str, ...] = ()
+    # where the DH chain starts in the robot's base frame (4, 4): the mount of the first joint
+    base_T_chain: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     @property
     def dof(self) -> int:

@@ -81,13 +81,14 @@ def solve_ik(
 
         if base_T_tool is None:
             raise InputError("the PUMA needs a full tool pose (position and orientation)")
-        base_T_flange = base_T_tool @ invert(robot.description.flange_T_tool)
+        base_T_flange = invert(robot.description.base_T_chain) @ base_T_tool @ invert(robot.description.flange_T_tool)
         raw = puma_ik_all(robot.description.joints, base_T_flange, q4_singular=float(q_ref[3]))
     elif kind == "rover":
         from shared.robots.ik_rover import rover_ik_all
 
         target = np.asarray(position if position is not None else base_T_tool[:3, 3], dtype=float)  # type: ignore[index]
-        raw = rover_ik_all(robot.description.joints, robot.description.flange_T_tool, target)
+        chain_p_target = invert(robot.description.base_T_chain) @ np.append(target, 1.0)
+        raw = rover_ik_all(robot.description.joints, robot.description.flange_T_tool, chain_p_target[:3])
     else:
         from shared.robots.ik_dls import dls_ik_all
 

@@ -59,6 +59,7 @@ class _KinematicsSpec(_Strict):
     angle_unit: Literal["rad", "deg"] = "rad"
     joints: list[_JointSpec] = Field(min_length=1)
     tool: _ToolSpec = _ToolSpec()
+    base: _ToolSpec = _ToolSpec()  # pose of the chain's first DH frame in the base frame
 
 
 class _ShapeSpec(_Strict):
@@ -149,6 +150,7 @@ def load_description(path: Path) -> RobotDescription:
         convention=kin.convention,
         joints=joints,
         flange_T_tool=pose_to_transform(np.array(kin.tool.xyz) * ls, np.array(kin.tool.rpy) * as_),
+        base_T_chain=pose_to_transform(np.array(kin.base.xyz) * ls, np.array(kin.base.rpy) * as_),
         ik=spec.ik,
         shapes={k: tuple(v) for k, v in shapes.items()},
         always_in_contact=tuple((int(a), int(b)) for a, b in spec.always_in_contact),

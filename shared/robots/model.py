@@ -65,6 +65,8 @@ def build_dh_model(desc: RobotDescription) -> tuple[pin.Model, int, tuple[int, .
                 @ _homogeneous(np.eye(3), [joint.a, 0.0, 0.0])
                 @ _homogeneous(rot_x(joint.alpha), [0.0, 0.0, 0.0])
             )
+        if i == 1:
+            placement = desc.base_T_chain @ placement
         name = joint.name or f"joint{i}"
         joint_id = model.addJoint(
             parent,
