@@ -1,6 +1,17 @@
 """Collision core (seed 002): hybrid bounding-volume hierarchies, exact triangle tests,
-exact distances, for the robot at q among a cell's objects. See ``scene.SceneModel``."""
+exact distances, for the robot at q among a cell's objects. See ``scene.SceneModel``.
+Mechanical interference zones in joint space (seed 001): ``interference``."""
 
+from shared.collision.interference import (
+    InterferenceZones,
+    PathCheck,
+    PathDetour,
+    PathOk,
+    PathRefused,
+    PolygonZone,
+    PolyhedronZone,
+    robot_zones,
+)
 from shared.collision.mesh_model import BodyMesh, MeshError, body_mesh, body_mesh_from_arrays
 from shared.collision.obb_tree import OBBTree, build_obb_tree, fit_obb
 from shared.collision.scene import CollisionReport, InterferingPair, PairDistance, SceneData, SceneModel
@@ -10,4 +21,6 @@ __all__ = [
     "BodyMesh", "MeshError", "body_mesh", "body_mesh_from_arrays", "OBBTree", "build_obb_tree", "fit_obb",
     "CollisionReport", "InterferingPair", "PairDistance", "SceneData", "SceneModel",
     "ZoneState", "classify", "zone",
+    "InterferenceZones", "PathCheck", "PathDetour", "PathOk", "PathRefused", "PolygonZone", "PolyhedronZone",
+    "robot_zones",
 ]

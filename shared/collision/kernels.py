@@ -448,3 +448,43 @@ def scene_check(
             for c in range(3):
                 Rprev[b, k, c] = Rw[b, k, c]
     return n_out
+
+
+@njit(**JIT)
+def chain_link_poses(world_T_base, placements, signs, frame_joint, frame_T_link, q, body_of_frame, out):
+    """World poses of a serial chain of revolute joints about their local z axis, written to
+    ``out[body_of_frame[f]]`` for each link frame ``f`` that has a body (-1: none).
+
+    Joint ``j`` (1-based) sits at ``parent_T_joint = placements[j - 1]`` and turns by
+    ``Rz(signs[j - 1] * q[j - 1])``; link frame ``f`` is ``frame_T_link[f]`` on joint
+    ``frame_joint[f]`` (0: the base). The same product pinocchio's forward kinematics forms, in
+    one compiled call instead of a Python loop over its frames.
+    """
+    n = q.shape[0]
+    chain = np.empty((n + 1, 4, 4))
+    chain[0] = world_T_base
+    for j in range(n):
+        th = signs[j] * q[j]
+        c = math.cos(th)
+        s = math.sin(th)
+        P = placements[j]
+        M = chain[j]
+        for r in range(4):
+            # (M @ P) @ Rz: columns 0 and 1 rotate, columns 2 and 3 stay
+            a0 = M[r, 0] * P[0, 0] + M[r, 1] * P[1, 0] + M[r, 2] * P[2, 0] + M[r, 3] * P[3, 0]
+            a1 = M[r, 0] * P[0, 1] + M[r, 1] * P[1, 1] + M[r, 2] * P[2, 1] + M[r, 3] * P[3, 1]
+            a2 = M[r, 0] * P[0, 2] + M[r, 1] * P[1, 2] + M[r, 2] * P[2, 2] + M[r, 3] * P[3, 2]
+            a3 = M[r, 0] * P[0, 3] + M[r, 1] * P[1, 3] + M[r, 2] * P[2, 3] + M[r, 3] * P[3, 3]
+            chain[j + 1, r, 0] = a0 * c + a1 * s
+            chain[j + 1, r, 1] = -a0 * s + a1 * c
+            chain[j + 1, r, 2] = a2
+            chain[j + 1, r, 3] = a3
+    for f in range(body_of_frame.shape[0]):
+        b = body_of_frame[f]
+        if b < 0:
+            continue
+        M = chain[frame_joint[f]]
+        L = frame_T_link[f]
+        for r in range(4):
+            for k in range(4):
+                out[b, r, k] = M[r, 0] * L[0, k] + M[r, 1] * L[1, k] + M[r, 2] * L[2, k] + M[r, 3] * L[3, k]

@@ -23,6 +23,7 @@ body mesh.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,11 +62,29 @@ class OBBTree:
         return int(depth.max()) + 1
 
 
-def covariance_axes(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` for (..., 3) arrays without its axis bookkeeping (it dominated tree builds)."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
+def triangle_areas(tris: np.ndarray) -> np.ndarray:
+    """Area of each triangle of ``tris`` (k, 3, 3)."""
+    return 0.5 * np.sqrt((_cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]) ** 2).sum(axis=-1))
+
+
+def covariance_axes(tris: np.ndarray, area: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Gottschalk's area-weighted triangle covariance of ``tris`` (k, 3, 3): (eigenvalues
-    ascending, eigenvectors as columns, right-handed)."""
+    ascending, eigenvectors as columns, right-handed). ``area``: the triangles' areas if known."""
     p, q, r = tris[:, 0], tris[:, 1], tris[:, 2]
-    area = 0.5 * np.linalg.norm(np.cross(q - p, r - p), axis=1)
+    if area is None:
+        area = triangle_areas(tris)
     total = area.sum()
     if total <= 0.0:  # all slivers: plain vertex covariance
         pts = tris.reshape(-1, 3)
@@ -89,28 +108,38 @@ def _box_in_basis(pts: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.nd
     return basis @ ((lo + hi) / 2.0), (hi - lo) / 2.0
 
 
+def _cross3(a, b) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 def _triangle_frames(tri: np.ndarray) -> list[np.ndarray]:
-    """Right-handed frames with z along the triangle's normal and x along each of its edges."""
-    n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
-    ln = np.linalg.norm(n)
+    """Right-handed frames with z along the triangle's normal and x along each of its edges
+    (plain float arithmetic: called once per node, numpy's per-call cost dominated)."""
+    p0, p1, p2 = (tuple(map(float, v)) for v in tri)
+    e0 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
+    e1 = (p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2])
+    e2 = (p0[0] - p2[0], p0[1] - p2[1], p0[2] - p2[2])
+    n = _cross3(e0, (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]))
+    ln = math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
     if ln <= 0.0:
         return []
-    z = n / ln
+    z = (n[0] / ln, n[1] / ln, n[2] / ln)
     frames = []
-    for e in (tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]):
-        le = np.linalg.norm(e)
+    for e in (e0, e1, e2):
+        le = math.sqrt(e[0] ** 2 + e[1] ** 2 + e[2] ** 2)
         if le > 0.0:
-            x = e / le
-            frames.append(np.column_stack([x, np.cross(z, x), z]))
+            x = (e[0] / le, e[1] / le, e[2] / le)
+            frames.append(np.array([x, _cross3(z, x), z]).T)
     return frames
 
 
-def fit_obb(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fit_obb(tris: np.ndarray, areas: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """OBB of triangles ``(k, 3, 3)``: (center (3,), axes (3, 3) as columns, half extents (3,))."""
     pts = tris.reshape(-1, 3)
-    _, cov_basis = covariance_axes(tris)
+    if areas is None:
+        areas = triangle_areas(tris)
+    _, cov_basis = covariance_axes(tris, areas)
     candidates = [cov_basis, np.eye(3)]
-    areas = np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
     candidates += _triangle_frames(tris[int(np.argmax(areas))])
     best = None
     for basis in candidates:
@@ -149,6 +178,7 @@ def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) 
     vertices = np.asarray(vertices, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
     tris_all = vertices[faces]
+    areas_all = triangle_areas(tris_all)
     centers, axes_l, halves, radii, lefts, rights, starts, counts = [], [], [], [], [], [], [], []
     order: list[np.ndarray] = []
     n_tris_placed = 0
@@ -160,7 +190,7 @@ def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) 
         if parent >= 0:
             (lefts if is_left else rights)[parent] = node
         sub = tris_all[idx]
-        c, ax, h = fit_obb(sub)
+        c, ax, h = fit_obb(sub, areas_all[idx])
         centers.append(c)
         axes_l.append(ax)
         halves.append(h)

@@ -17,6 +17,7 @@ hole) are *resting contacts*: they are skipped unless ``object_poses`` moves one
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -154,6 +155,18 @@ class PackedScene:
         return cls(arrays, max(t.depth for t in trees))
 
 
+@functools.lru_cache(maxsize=16)
+def _link_bodies(robot, leaf_size: int) -> tuple[Body, ...]:
+    """The robot's link hierarchies, built once per robot model (robots are immutable and
+    cached by the loader) and shared by every scene that holds the robot."""
+    bodies = []
+    for link in range(robot.dof + 1):
+        mesh = body_mesh(f"link{link}", robot.shapes.get(link, ()))
+        if mesh is not None:
+            bodies.append(Body(f"link{link}", "link", link, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+    return tuple(bodies)
+
+
 def _frozen(a: np.ndarray) -> np.ndarray:
     a.flags.writeable = False
     return a
@@ -223,11 +236,7 @@ class SceneModel:
         if object_pairs not in ("none", "movable", "all"):
             raise InputError(f"object_pairs must be one of 'none', 'movable', 'all', got {object_pairs!r}")
         robot = cell.robot
-        bodies: list[Body] = []
-        for link in range(robot.dof + 1):
-            mesh = body_mesh(f"link{link}", robot.shapes.get(link, ()))
-            if mesh is not None:
-                bodies.append(Body(f"link{link}", "link", link, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+        bodies: list[Body] = list(_link_bodies(robot, leaf_size))
         for k, obj in enumerate(cell.objects):
             mesh = body_mesh(obj.name, obj.shapes)
             if mesh is not None:
@@ -257,6 +266,23 @@ class SceneModel:
             resting = [model.pair_names[p] for p in object_pair_ids if raw[0][p]]
             model.resting_pairs = frozenset(frozenset(r) for r in resting)
         return model
+
+    @classmethod
+    def from_robot(cls, robot, leaf_size: int = 1, skip: Iterable[tuple[int, int]] = ()) -> SceneModel:
+        """The robot alone, for self-collision (mechanical interference zones): its links at
+        ``world_T_base = I``; pairs are non-adjacent links not declared always in contact and
+        not in ``skip`` (link index pairs)."""
+        bodies = list(_link_bodies(robot, leaf_size))
+        excluded = {frozenset((i, i + 1)) for i in range(robot.dof)}
+        excluded |= {frozenset(p) for p in robot.description.always_in_contact}
+        excluded |= {frozenset(p) for p in skip}
+        pairs = [
+            (i, j)
+            for i in range(len(bodies))
+            for j in range(i + 1, len(bodies))
+            if frozenset((bodies[i].index, bodies[j].index)) not in excluded
+        ]
+        return cls(bodies, pairs, robot, np.eye(4), {}, source=robot.description.source)
 
     # -- per-caller state ----------------------------------------------------------------------
     def new_data(self) -> SceneData:
@@ -291,15 +317,84 @@ class SceneModel:
             raise UnknownNameError("checked pair", f"{a}/{b}", [f"{x}/{y}" for x, y in self.pair_names]) from None
 
     # -- poses -----------------------------------------------------------------------------------
+    @cached_property
+    def _template_poses(self) -> np.ndarray:
+        """Every body's world pose with the objects where the cell puts them (links: identity)."""
+        out = np.tile(np.eye(4), (len(self.bodies), 1, 1))
+        for i in self.object_bodies:
+            out[i] = self.default_object_poses.get(self.bodies[i].name, np.eye(4))
+        return out
+
+    @cached_property
+    def _link_body_list(self) -> list[int]:
+        return list(self.link_bodies)
+
+    @cached_property
+    def _chain(self) -> tuple[np.ndarray, ...] | None:
+        """Arrays for ``kernels.chain_link_poses`` when the robot is a serial chain of revolute
+        joints about local z (every DH robot): link poses then cost one compiled call rather
+        than pinocchio's frame loop and a stack of 4x4 copies. ``None``: use the robot's
+        ``link_poses``."""
+        robot = self.robot
+        if robot is None or not self.link_bodies:
+            return None
+        try:
+            import pinocchio as pin
+
+            model = robot.model
+            signs = []
+            placements = []
+            for j in range(1, model.njoints):
+                joint = model.joints[j]
+                if model.parents[j] != j - 1:
+                    return None
+                kind = joint.shortname()
+                if kind == "JointModelRZ":
+                    signs.append(1.0)
+                elif kind == "JointModelRevoluteUnaligned":
+                    axis = np.asarray(joint.extract().axis, dtype=float)
+                    if not np.allclose(np.abs(axis), [0.0, 0.0, 1.0], atol=0.0):
+                        return None
+                    signs.append(float(np.sign(axis[2])))
+                else:
+                    return None
+                placements.append(model.jointPlacements[j].homogeneous)
+            if len(signs) != robot.dof:
+                return None
+            frames = [model.frames[f] for f in robot.link_frame_ids]
+            frame_joint = np.array([f.parentJoint for f in frames], dtype=np.int64)
+            frame_T_link = np.array([f.placement.homogeneous for f in frames])
+        except (AttributeError, ImportError, TypeError, ValueError):
+            return None
+        body_of_frame = np.full(len(frames), -1, dtype=np.int64)
+        for body, link in zip(self.link_bodies, self.link_indices):
+            body_of_frame[link] = body
+        del pin
+        return (
+            np.ascontiguousarray(self.world_T_base, dtype=float),
+            np.ascontiguousarray(np.array(placements)),
+            np.array(signs),
+            frame_joint,
+            np.ascontiguousarray(frame_T_link),
+            body_of_frame,
+        )
+
     def _world_poses(self, q, object_poses: Mapping[str, np.ndarray] | None, data: SceneData | None = None) -> np.ndarray:
-        out = np.empty((len(self.bodies), 4, 4))
+        out = self._template_poses.copy()
         if self.link_bodies:
             if q is None:
                 raise InputError("a joint vector is needed to place the robot's links")
             q = self.robot.as_q(q)
-            poses = self.robot.link_poses(q, data.robot_data if data is not None else None)
-            out[list(self.link_bodies)] = self.world_T_base @ poses[self.link_indices]
-        overrides = object_poses or {}
+            chain = self._chain
+            if chain is not None:
+                wTb, placements, signs, frame_joint, frame_T_link, body_of_frame = chain
+                kernels.chain_link_poses(wTb, placements, signs, frame_joint, frame_T_link, q, body_of_frame, out)
+            else:
+                poses = self.robot.link_poses(q, data.robot_data if data is not None else None)
+                out[self._link_body_list] = self.world_T_base @ poses[self.link_indices]
+        if not object_poses:
+            return out
+        overrides = object_poses
         for name in overrides:
             if name not in self.default_object_poses and name not in self._index:
                 raise UnknownNameError("object", name, self.default_object_poses)
@@ -409,6 +504,13 @@ class SceneModel:
         moved = frozenset(object_poses) if object_poses else frozenset()
         mode = self._mode(data, distances, skip, moved)
         return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
+
+    def pair_hits(self, q, *, data: SceneData | None = None) -> np.ndarray:
+        """Which checked pairs interfere at ``q`` (bool per ``pair_names``): the yes/no answer
+        without distances, triangle lists or a report, for sampling many configurations."""
+        data = self._data(data)
+        mode = self._mode(data, "none", (), frozenset())
+        return self._run(self._world_poses(q, None, data), mode, data, first_only=True)[0]
 
     def check_world(
         self,

@@ -30,10 +30,31 @@ def test_resting_contact_is_skipped_until_the_peg_moves(cell, model) -> None:
     assert ("plate", "peg") in at_rest.triangle_pairs  # put back on the floor: touching
 
 
+# the gripper lowered into the plate beside the holes (the only interfering pair)
+Q_INTO_PLATE = np.radians([0.0, -30.0, 180.0, 0.0, 45.0, 0.0])
+
+
+def test_wrist_pairs_declared_in_the_robot_file_are_never_checked(cell, model) -> None:
+    names = set(model.pair_names)
+    for pair in (("link3", "link6"), ("link4", "link6"), ("link3", "link5")):
+        assert pair not in names
+    assert not model.check(cell.q_home).colliding  # the ready pose touches nothing
+
+
+def test_compiled_link_poses_match_the_robot_model(cell, model) -> None:
+    assert model._chain is not None  # the PUMA is a DH chain: the compiled path is taken
+    rng = np.random.default_rng(5)
+    links = list(model.link_bodies)
+    for q in rng.uniform(cell.robot.lower, cell.robot.upper, size=(50, cell.robot.dof)):
+        ours = model._world_poses(q, None)[links]
+        ref = cell.world_T_base @ cell.robot.link_poses(q)[model.link_indices]
+        np.testing.assert_allclose(ours, ref, atol=1e-12)
+
+
 def test_reported_triangles_really_interfere(cell, model) -> None:
-    report = model.check(cell.q_home)
+    report = model.check(Q_INTO_PLATE)
     assert report.colliding and report.pairs
-    poses = model.body_poses(cell.q_home)
+    poses = model.body_poses(Q_INTO_PLATE)
     for a, b in report.triangle_pairs:
         ma, mb = model.mesh(a), model.mesh(b)
         for ta, tb in report.triangle_pairs[(a, b)][:50]:
@@ -42,17 +63,18 @@ def test_reported_triangles_really_interfere(cell, model) -> None:
             assert tri_tri_intersect_np(pa, pb)
     for pair in report.pairs:
         assert set(pair.tris_a) == set(report.triangle_pairs[(pair.a, pair.b)][:, 0])
-    assert set(report.interfering_triangles("link6")) >= set(report.pairs[0].tris_b)
+    assert set(report.interfering_triangles("link6")) >= set(report.pairs[0].tris_a)
 
 
 def test_skip_and_first_hit_and_no_distances(cell, model) -> None:
-    wrist = (("link3", "link6"), ("link4", "link6"))
-    full = model.check(cell.q_home)
-    assert {(p.a, p.b) for p in full.pairs} == set(wrist)  # the robot file's wrist shapes overlap
-    clean = model.check(cell.q_home, skip=wrist)
+    touching = (("link6", "plate"),)
+    full = model.check(Q_INTO_PLATE)
+    assert {(p.a, p.b) for p in full.pairs} == set(touching)
+    assert len(full.pairs[0].tris_a) > 1 and full.min_distance == 0.0
+    clean = model.check(Q_INTO_PLATE, skip=touching)
     assert not clean.colliding and clean.min_distance > 0
-    quick = model.check(cell.q_home, triangles=False, distances="none")
-    assert quick.colliding and {(p.a, p.b) for p in quick.pairs} == set(wrist)
+    quick = model.check(Q_INTO_PLATE, triangles=False, distances="none")
+    assert quick.colliding and {(p.a, p.b) for p in quick.pairs} == set(touching)
     assert all(len(p.tris_a) == 1 for p in quick.pairs)
     assert quick.min_distance is None and quick.distances == {}
     some = model.check(cell.q_home, distances=["peg", ("link6", "table")])
@@ -60,7 +82,7 @@ def test_skip_and_first_hit_and_no_distances(cell, model) -> None:
 
 
 def test_distances_witness_points_and_lookup(cell, model) -> None:
-    report = model.check(cell.q_home, skip=(("link3", "link6"), ("link4", "link6")))
+    report = model.check(cell.q_home)
     d = report.distance("peg", "link6")
     assert d.a == "peg" and d.distance == pytest.approx(np.linalg.norm(d.point_a - d.point_b))
     assert report.nearest.distance == report.min_distance == min(v.distance for v in report.distances.values())

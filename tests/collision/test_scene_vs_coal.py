@@ -82,7 +82,7 @@ def test_random_poses_agree_with_coal(cell, model, coal_scene) -> None:
     rng = np.random.default_rng(2024)
     qs = rng.uniform(cell.robot.lower, cell.robot.upper, size=(N_POSES, cell.robot.dof))
     total = run_stream(model, coal_scene, qs)
-    assert total["colliding"] > N_POSES  # the wrist pairs and many others were exercised
+    assert total["colliding"] > N_POSES // 10  # links against the table, the pedestal, each other
     assert total["apart"] > 10 * N_POSES
     assert total["ties"] == 0
 
