@@ -44,7 +44,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             print(f"teleprog: error: {line}", file=sys.stderr)
         return 1
     program = parsed.statements
-    plan = plan_program(program, robot, cell, start)
+    zones = None
+    if not args.no_zones:
+        from shared.collision.interference import robot_zones
+
+        zones = robot_zones(robot, pairs=((2, 3),) if robot.dof >= 3 else ())
+    plan = plan_program(program, robot, cell, start, zones=zones)
     rows = [
         {
             "index": seg.index + 1,
@@ -100,6 +105,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", required=True, help="puma562, rover, or a .urdf/.toml file")
     p.add_argument("--cell", help="cell file (.toml); gives the frames, tool point and home pose")
     p.add_argument("--start", type=float, nargs="+", metavar="Q", help="start joint vector in degrees (default: cell home, else zero)")
+    p.add_argument("--no-zones", action="store_true", help="do not route MOVE/DRIVE round the arm's interference zones (seed 001)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(handler=_cmd_plan)
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from shared.cells.cell import Cell, Feature
+from shared.collision.interference import InterferenceZones, PathDetour, PathRefused
 from shared.errors import InputError
 from shared.language.statements import (
     Draw,
@@ -118,8 +119,10 @@ class Interpreter:
         frames: CellFrames | None = None,
         limits: MotionLimits | None = None,
         features: dict[str, Feature] | None = None,
+        zones: InterferenceZones | None = None,
     ) -> None:
         self.robot = robot
+        self.zones = zones  # mechanical interference zones (seed 001); None: not checked
         self.frames = frames or CellFrames.identity()
         self.features = dict(features or {})  # named points of the cell (holes), for task contracts
         self.limits = limits or default_limits(robot)
@@ -129,9 +132,15 @@ class Interpreter:
         self._state = InterpreterState(q=q.copy(), world_T_tcp=self.frames.world_T_tcp(robot, q))
 
     @classmethod
-    def for_cell(cls, cell: Cell, q_start: Sequence[float] | np.ndarray | None = None, limits: MotionLimits | None = None) -> "Interpreter":
+    def for_cell(
+        cls,
+        cell: Cell,
+        q_start: Sequence[float] | np.ndarray | None = None,
+        limits: MotionLimits | None = None,
+        zones: InterferenceZones | None = None,
+    ) -> "Interpreter":
         q = cell.q_home if q_start is None else q_start
-        return cls(cell.robot, q, CellFrames.from_cell(cell), limits, cell.features)
+        return cls(cell.robot, q, CellFrames.from_cell(cell), limits, cell.features, zones)
 
     @property
     def state(self) -> InterpreterState:
@@ -269,13 +278,21 @@ class Interpreter:
                 f"[{math.degrees(robot.lower[i]):.3f}, {math.degrees(robot.upper[i]):.3f}] deg",
             )
         rates = self._rates(st, state)
-        path = JointPath(q0.copy(), q1)
+        path: JointPath | NodePath = JointPath(q0.copy(), q1)
         kind = SegmentKind.JOINT
         if not np.any(np.abs(path.delta) > STILL):
             return Segment(index, st, kind, q0.copy(), q1, state.mode, warnings=rates.warnings)
+        warnings = rates.warnings
+        if self.zones is not None:
+            check = self.zones.check_path(q0, q1)
+            if isinstance(check, PathRefused):
+                raise PlanRefused(RefusalReason.INTERFERENCE, f"{check.reason}")
+            if isinstance(check, PathDetour):
+                path = _detour_path(q0, list(check.waypoints), q1)
+                warnings += (f"detoured round interference zone(s) {', '.join(check.zones)} through {len(check.waypoints)} waypoint(s)",)
         v_s = a_s = math.inf
         law = self._time_law(path, rates, v_s, a_s)
-        return Segment(index, st, kind, q0.copy(), q1, state.mode, path, law, rates.warnings)
+        return Segment(index, st, kind, q0.copy(), q1, state.mode, path, law, warnings)
 
     def _goal(self, st: Draw | Rotate | Moves, state: InterpreterState) -> np.ndarray:
         world_T_start = state.world_T_tcp
@@ -470,12 +487,25 @@ def _build_sample_table(segments: tuple[Segment, ...], dof: int) -> _SampleTable
     )
 
 
+def _detour_path(q0: np.ndarray, waypoints: list[np.ndarray], q1: np.ndarray) -> NodePath:
+    """The polyline ``q0 -> waypoints -> q1`` as a path that stops at every corner: Hermite pieces
+    with zero tangents stay on each straight leg (so they never cut a zone's corner) and the
+    velocity along the path is continuous."""
+    nodes = np.vstack([q0, *waypoints, q1])
+    legs = np.linalg.norm(np.diff(nodes, axis=0), axis=1)
+    keep = np.concatenate([[True], legs > STILL])
+    nodes = nodes[keep]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(nodes, axis=0), axis=1))])
+    return NodePath(s / s[-1], nodes, np.zeros_like(nodes))
+
+
 def plan_program(
     program: Sequence[Statement],
     robot: Robot,
     cell: Cell | None = None,
     start_q: Sequence[float] | np.ndarray | None = None,
     limits: MotionLimits | None = None,
+    zones: InterferenceZones | None = None,
 ) -> Plan:
     """Plan every statement of ``program`` in order, stopping at the first refusal.
 
@@ -487,7 +517,7 @@ def plan_program(
     if start_q is None:
         start_q = cell.q_home if cell is not None else np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
     frames = CellFrames.from_cell(cell) if cell is not None else CellFrames.identity()
-    interp = Interpreter(robot, start_q, frames, limits, cell.features if cell is not None else None)
+    interp = Interpreter(robot, start_q, frames, limits, cell.features if cell is not None else None, zones)
     q_start = interp.state.q.copy()
     segments: list[Segment] = []
     refusal: PlanRefused | None = None

@@ -14,6 +14,7 @@ class RefusalReason(str, Enum):
     UNSUPPORTED = "unsupported"  # the robot cannot do this kind of motion (e.g. orient a 3-DOF arm)
     INVALID = "invalid"  # the statement does not fit the robot (joint count, speed unit, ...)
     AFTER_TASK = "after_task"  # a statement after a task call, whose end state is not known here
+    INTERFERENCE = "interference"  # the goal is inside a mechanical interference zone, or no detour exists
 
 
 class PlanRefused(KinematicsError):
