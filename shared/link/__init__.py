@@ -1,1 +1,1 @@
-"""The delayed link's core: sans-I/O, explicit timestamps in, deliveries out."""
+"""The delayed link's core: sans-I/O, explicit timestamps in, deliveries out (``core.LinkCore``)."""

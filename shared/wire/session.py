@@ -1,0 +1,290 @@
+"""The two ends of the command channel as sans-I/O state machines.
+
+``CommandReceiver`` is the robot's end: it takes the bytes of units and the texts of messages,
+assembles communications, numbers their statements, answers, logs status reports and replays what
+a reconnecting client missed. ``CommandSender`` is the console's end: it cuts programs into units,
+keeps them until answered, and after a reconnect works out what to send again. Neither touches a
+socket or a clock, so the exactly-once argument in ``shared.wire.messages`` can be tested by
+feeding them any interleaving of losses and reconnects.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+from pydantic import BaseModel
+
+from shared.language.statements import Statement
+from shared.wire.messages import (
+    FINAL_STATES,
+    AbortFlush,
+    Accepted,
+    Answer,
+    Hello,
+    RecoveryAck,
+    Recovery,
+    Rejected,
+    RejectReason,
+    Resume,
+    RobotSnapshot,
+    SkipCurrent,
+    StatementState,
+    StatusReport,
+    Stop,
+    Welcome,
+    decode_message,
+)
+from shared.wire.units import CommandUnit, decode_unit, split_into_units
+
+log = logging.getLogger(__name__)
+
+MAX_COMM_STATEMENTS = 100_000
+"""Most statements one communication may hold (the receiver's buffer limit per communication)."""
+KEPT_ANSWERS = 4096
+"""Answers kept per client for re-delivery after a reconnect."""
+
+
+@dataclass
+class ReceiverStep:
+    """What one input produced: messages for this connection, statements for the robot's buffer,
+    recovery commands to apply (each new one once; call ``CommandReceiver.ack`` after applying)."""
+
+    replies: list[BaseModel] = field(default_factory=list)
+    accepted: list[tuple[int, Statement]] = field(default_factory=list)
+    recoveries: list[Recovery] = field(default_factory=list)
+
+
+@dataclass
+class _ClientState:
+    last_answered: int = 0
+    units: list[CommandUnit] = field(default_factory=list)  # units held of communication last_answered + 1
+    answers: OrderedDict[int, Answer] = field(default_factory=OrderedDict)
+    last_applied_command: int = 0
+    acks: OrderedDict[int, RecoveryAck] = field(default_factory=OrderedDict)
+
+
+class CommandReceiver:
+    """The robot's end of the command channel (one per robot process, across connections).
+
+    Send ``replies`` (and the reports from ``report``) on the current connection in the order they
+    were produced, through one writer: the client relies on report order.
+    """
+
+    def __init__(self, session_id: str, first_number: int = 1, max_comm_statements: int = MAX_COMM_STATEMENTS) -> None:
+        self.session_id = session_id
+        self.next_number = first_number
+        self.max_comm_statements = max_comm_statements
+        self.reports: list[StatusReport] = []
+        self._clients: dict[str, _ClientState] = {}
+        self._client: str | None = None  # client bound to the current connection
+
+    # -- connection ---------------------------------------------------------------------------
+
+    def disconnect(self) -> None:
+        """The connection ended; state is kept for the client's return."""
+        self._client = None
+
+    def on_text(self, text: str | bytes) -> ReceiverStep:
+        msg = decode_message(text)
+        if isinstance(msg, Rejected):
+            return ReceiverStep(replies=[msg.model_copy(update={"final": False})])
+        if isinstance(msg, Hello):
+            return self._hello(msg)
+        if isinstance(msg, (Stop, Resume, SkipCurrent, AbortFlush)):
+            return self._recovery(msg)
+        return ReceiverStep(replies=[Rejected(
+            reason=RejectReason.BAD_MESSAGE, final=False, detail=f"the robot does not take {msg.type!r} messages"
+        )])
+
+    def _hello(self, hello: Hello) -> ReceiverStep:
+        client = self._clients.setdefault(hello.client_id, _ClientState())
+        self._client = hello.client_id
+        step = ReceiverStep()
+        step.replies.append(
+            Welcome(
+                session_id=self.session_id,
+                last_answered_comm=client.last_answered,
+                units_held=len(client.units),
+                last_applied_command=client.last_applied_command,
+                last_report_seq=len(self.reports),
+            )
+        )
+        step.replies += [a for c, a in client.answers.items() if c > hello.last_answered_comm]
+        step.replies += [a for c, a in client.acks.items() if c > hello.last_acked_command]
+        step.replies += self.reports[hello.last_report_seq :]
+        return step
+
+    # -- units ---------------------------------------------------------------------------------
+
+    def on_unit(self, data: bytes) -> ReceiverStep:
+        if self._client is None:
+            return ReceiverStep(replies=[Rejected(reason=RejectReason.NO_SESSION, detail="send hello before units", final=False)])
+        client = self._clients[self._client]
+        unit = decode_unit(data)
+        expected = client.last_answered + 1
+        comm_id = unit.comm_id
+        if comm_id is None:  # unreadable header: nothing to tie it to
+            return ReceiverStep(replies=[unit.model_copy(update={"final": False})])
+        if comm_id < expected:  # a repeat of an answered communication
+            end = unit.end if isinstance(unit, CommandUnit) else False
+            answer = client.answers.get(comm_id)
+            return ReceiverStep(replies=[answer] if end and answer is not None else [])
+        if comm_id > expected:
+            return ReceiverStep(replies=[Rejected(
+                comm_id=comm_id, seq=unit.seq, reason=RejectReason.OUT_OF_SEQUENCE, final=False,
+                detail=f"communication {comm_id} arrived while {expected} is open",
+            )])
+        offset = sum(len(u.statements) for u in client.units)
+        if isinstance(unit, Rejected):
+            if unit.statement_index is not None:
+                unit = unit.model_copy(update={"statement_index": offset + unit.statement_index})
+            return self._answer(client, unit)
+        if unit.seq < len(client.units):  # a repeat of a unit already held
+            return ReceiverStep()
+        if unit.seq > len(client.units):
+            return self._answer(client, Rejected(
+                comm_id=comm_id, seq=unit.seq, reason=RejectReason.OUT_OF_SEQUENCE,
+                detail=f"unit {unit.seq} arrived while unit {len(client.units)} was expected",
+            ))
+        if offset + len(unit.statements) > self.max_comm_statements:
+            return self._answer(client, Rejected(
+                comm_id=comm_id, seq=unit.seq, reason=RejectReason.TOO_LARGE,
+                detail=f"communication over {self.max_comm_statements} statements",
+            ))
+        client.units.append(unit)
+        if not unit.end:
+            return ReceiverStep()
+        statements = [s for u in client.units for s in u.statements]
+        numbers = tuple(range(self.next_number, self.next_number + len(statements)))
+        self.next_number += len(statements)
+        step = self._answer(client, Accepted(comm_id=comm_id, numbers=numbers))
+        step.accepted = list(zip(numbers, statements))
+        step.replies += [self.report(n, StatementState.RECEIVED) for n in numbers]
+        return step
+
+    def _answer(self, client: _ClientState, answer: Answer) -> ReceiverStep:
+        """Close the open communication with ``answer`` (stored for re-delivery)."""
+        assert answer.comm_id == client.last_answered + 1
+        client.last_answered = answer.comm_id
+        client.units = []
+        client.answers[answer.comm_id] = answer
+        while len(client.answers) > KEPT_ANSWERS:
+            client.answers.popitem(last=False)
+        if isinstance(answer, Rejected):
+            log.info("communication %d rejected: %s (%s)", answer.comm_id, answer.reason.value, answer.detail)
+        return ReceiverStep(replies=[answer])
+
+    # -- recovery and status -------------------------------------------------------------------
+
+    def _recovery(self, cmd: Recovery) -> ReceiverStep:
+        if self._client is None:
+            return ReceiverStep(replies=[Rejected(reason=RejectReason.NO_SESSION, detail="send hello before commands", final=False)])
+        client = self._clients[self._client]
+        if cmd.command_id <= client.last_applied_command:
+            ack = client.acks.get(cmd.command_id)
+            return ReceiverStep(replies=[ack] if ack is not None else [])
+        client.last_applied_command = cmd.command_id
+        return ReceiverStep(recoveries=[cmd])
+
+    def ack(self, cmd: Recovery, applied: bool, detail: str = "", robot: RobotSnapshot | None = None) -> RecoveryAck:
+        """Record and return the acknowledgement of a recovery command the robot has handled."""
+        ack = RecoveryAck(command_id=cmd.command_id, applied=applied, detail=detail, robot=robot)
+        if self._client is not None:
+            acks = self._clients[self._client].acks
+            acks[cmd.command_id] = ack
+            while len(acks) > KEPT_ANSWERS:
+                acks.popitem(last=False)
+        return ack
+
+    def report(
+        self, number: int, state: StatementState, reason: str | None = None, robot: RobotSnapshot | None = None
+    ) -> StatusReport:
+        """Log the next status report (kept for replay) and return it for sending."""
+        rep = StatusReport(report_seq=len(self.reports) + 1, number=number, state=state, reason=reason, robot=robot)
+        self.reports.append(rep)
+        return rep
+
+
+class CommandSender:
+    """The console's end of the command channel: numbering, keeping and re-sending units."""
+
+    def __init__(self, client_id: str, per_unit: int = 100) -> None:
+        self.client_id = client_id
+        self.per_unit = per_unit
+        self.next_comm = 1
+        self.next_command = 1
+        self.outbox: OrderedDict[int, list[bytes]] = OrderedDict()  # unanswered communications
+        self.answers: dict[int, Answer] = {}
+        self.statuses: dict[int, list[StatementState]] = {}
+        self.last_report_seq = 0
+        self.session_id: str | None = None
+        self._unacked: OrderedDict[int, Recovery] = OrderedDict()
+
+    @property
+    def last_answered_comm(self) -> int:
+        # answers come in communication order, so the unanswered ones are always the newest
+        return min(self.outbox) - 1 if self.outbox else self.next_comm - 1
+
+    def submit(self, statements: list[Statement]) -> tuple[int, list[bytes]]:
+        """Open a communication with these statements; returns its number and the units to send."""
+        comm_id = self.next_comm
+        self.next_comm += 1
+        units = split_into_units(comm_id, statements, self.per_unit)
+        self.outbox[comm_id] = units
+        return comm_id, units
+
+    def command(self, kind: type[Recovery], **fields: object) -> Recovery:
+        """A new recovery command (kept until acknowledged)."""
+        cmd = kind(command_id=self.next_command, **fields)
+        self.next_command += 1
+        self._unacked[cmd.command_id] = cmd
+        return cmd
+
+    def hello(self) -> Hello:
+        return Hello(
+            client_id=self.client_id,
+            last_answered_comm=self.last_answered_comm,
+            last_report_seq=self.last_report_seq,
+            last_acked_command=min(self._unacked) - 1 if self._unacked else self.next_command - 1,
+        )
+
+    def on_welcome(self, welcome: Welcome) -> list[bytes | Recovery]:
+        """What to send again after ``welcome``: units the robot lacks, then unapplied commands."""
+        if self.session_id is not None and welcome.session_id != self.session_id:
+            log.warning("robot session changed (%s -> %s): unanswered work is unknown", self.session_id, welcome.session_id)
+        self.session_id = welcome.session_id
+        out: list[bytes | Recovery] = []
+        for comm_id, units in self.outbox.items():
+            if comm_id <= welcome.last_answered_comm:
+                continue  # its answer is being replayed
+            held = welcome.units_held if comm_id == welcome.last_answered_comm + 1 else 0
+            out += units[held:]
+        out += [c for i, c in self._unacked.items() if i > welcome.last_applied_command]
+        return out
+
+    def on_message(self, msg: BaseModel) -> None:
+        """Record an answer, a status report or an acknowledgement (repeats are ignored)."""
+        if isinstance(msg, Rejected) and not msg.final:
+            log.warning("robot refused a unit or message: %s (%s)", msg.reason.value, msg.detail)
+        elif isinstance(msg, (Accepted, Rejected)) and msg.comm_id is not None:
+            if msg.comm_id not in self.answers:
+                self.answers[msg.comm_id] = msg
+            self.outbox.pop(msg.comm_id, None)
+        elif isinstance(msg, StatusReport):
+            if msg.report_seq <= self.last_report_seq:
+                return
+            self.last_report_seq = msg.report_seq
+            self.statuses.setdefault(msg.number, []).append(msg.state)
+        elif isinstance(msg, RecoveryAck):
+            self._unacked.pop(msg.command_id, None)
+
+    def final_state(self, number: int) -> StatementState | None:
+        finals = [s for s in self.statuses.get(number, []) if s in FINAL_STATES]
+        return finals[-1] if finals else None
+
+    @property
+    def idle(self) -> bool:
+        """No communication waits for its answer and no command for its acknowledgement."""
+        return not self.outbox and not self._unacked

@@ -1,0 +1,92 @@
+"""Telemetry frames: the documented fixed layout, round trips, refusal of anything else."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from shared.wire.messages import ControlMode, RobotState
+from shared.wire.telemetry import (
+    FRAME_DTYPE,
+    FRAME_SIZE,
+    TelemetryError,
+    TelemetryFrame,
+    decode_frame,
+    decode_frames,
+    encode_frame,
+)
+
+FRAME = TelemetryFrame(
+    time=12.34, frame=617, state=RobotState.RUNNING, mode=ControlMode.FORCE, statement=42,
+    q=(0.1, -0.2, 0.3, -0.4, 0.5, -0.6), position=(0.45, -0.1, 0.32), rpy=(0.0, 3.1, -0.2),
+    gripper=0.012, wrench=(1.0, -2.0, 15.5, 0.01, 0.02, -0.03),
+)
+
+
+def test_layout_is_the_documented_one():
+    assert FRAME_SIZE == 174
+    offsets = {name: FRAME_DTYPE.fields[name][1] for name in FRAME_DTYPE.names}
+    assert offsets == {"magic": 0, "version": 2, "state": 3, "mode": 4, "dof": 5, "time": 6, "frame": 14,
+                       "statement": 18, "q": 22, "position": 70, "rpy": 94, "gripper": 118, "wrench": 126}
+
+
+def test_round_trip():
+    data = encode_frame(FRAME)
+    assert len(data) == FRAME_SIZE
+    assert decode_frame(data) == FRAME
+
+
+def test_fewer_joints_are_padded_and_restored():
+    rover = TelemetryFrame(time=0.0, frame=0, state=RobotState.IDLE, mode=ControlMode.POSITION, statement=0,
+                           q=(0.1, 0.2, 0.3), position=(0, 0, 0), rpy=(0, 0, 0))
+    data = encode_frame(rover)
+    assert len(data) == FRAME_SIZE
+    assert decode_frame(data).q == (0.1, 0.2, 0.3)
+    assert np.all(decode_frames(data)["q"][0, 3:] == 0.0)
+
+
+def test_fields_sit_at_their_offsets_little_endian():
+    data = encode_frame(FRAME)
+    assert data[:2] == b"TF" and data[3] == int(RobotState.RUNNING) and data[4] == int(ControlMode.FORCE)
+    assert int.from_bytes(data[14:18], "little") == 617
+    assert int.from_bytes(data[18:22], "little") == 42
+    assert np.frombuffer(data[22:30], "<f8")[0] == 0.1
+
+
+def test_a_recording_decodes_at_once():
+    frames = [encode_frame(TelemetryFrame(**{**FRAME.__dict__, "frame": i, "time": i / 50})) for i in range(100)]
+    arr = decode_frames(b"".join(frames))
+    assert arr.shape == (100,)
+    assert np.array_equal(arr["frame"], np.arange(100))
+    assert np.allclose(np.diff(arr["time"]), 0.02)
+
+
+@pytest.mark.parametrize("cut", [0, 1, FRAME_SIZE - 1])
+def test_wrong_sizes_are_refused(cut):
+    with pytest.raises(TelemetryError):
+        decode_frame(encode_frame(FRAME)[:cut])
+    with pytest.raises(TelemetryError):
+        decode_frame(encode_frame(FRAME) + b"\x00")
+
+
+@pytest.mark.parametrize(("offset", "value"), [(0, ord("X")), (2, 7), (3, 200), (4, 9), (5, 0), (5, 7)])
+def test_bad_header_bytes_are_refused(offset, value):
+    data = bytearray(encode_frame(FRAME))
+    data[offset] = value
+    with pytest.raises(TelemetryError):
+        decode_frame(bytes(data))
+
+
+def test_too_many_joints_cannot_be_encoded():
+    with pytest.raises(TelemetryError):
+        encode_frame(TelemetryFrame(**{**FRAME.__dict__, "q": (0.0,) * 7}))
+
+
+@given(st.binary(min_size=FRAME_SIZE, max_size=FRAME_SIZE))
+def test_random_bytes_decode_or_raise_the_typed_error(data):
+    try:
+        decode_frame(data)
+    except TelemetryError:
+        pass
