@@ -1,0 +1,400 @@
+"""The telerobot's executor (thesis §4.5): statements in, joint servo out, one status per outcome.
+
+Sans-I/O and clock-free: the service calls ``tick()`` once per servo period and the executor
+advances its own time by ``dt``, so tests run it in virtual time and the real process runs the
+very same code in real time. Each statement is planned when it starts, from where the arm really
+is, by the interpreter the console's preview uses (``shared.motion``), and stepped sample by
+sample against the simulated world's sensors.
+
+Every statement ends in exactly one final state: ``done``, ``failed`` (with the reason and the
+robot's state), ``skipped`` or ``aborted``. On anything unexpected (contact that no UNTIL asked
+for, a force over the safety limit, a refused plan, a failed task step) the arm holds where it
+is, the statement fails, and the robot waits in FAULT for the operator: ``resume`` goes on with
+the next statement, ``abort`` flushes the buffer. ``stop`` freezes the arm mid-motion (STOPPED);
+``resume`` continues the same motion, ``skip`` drops it, ``abort`` drops it and the buffer.
+
+Tasks (``shared.language.tasks``) run as generators of small guarded motions, planned by the
+same interpreter: ``insert_peg`` approaches the hole, descends until contact, searches around
+the contact point with the force sensor when the peg lands on the plate, then seats the peg;
+``extract_peg`` pulls the peg out along the hole's axis and fails if it sticks.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Generator, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from shared.cells.cell import Cell
+from shared.errors import TeleprogError
+from shared.language.statements import (
+    Draw,
+    Frame,
+    Mode,
+    SetMode,
+    Speed,
+    SpeedUnit,
+    Statement,
+    TaskCall,
+    UntilContact,
+    UntilForce,
+)
+from shared.language.tasks import EXTRACT_LIFT_M, find_task, resolve_name
+from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopReason
+from shared.spatial import matrix_to_rpy
+from shared.wire.messages import ControlMode, RobotSnapshot, RobotState, StatementState
+from robot_sim.world import SimWorld
+
+log = logging.getLogger(__name__)
+
+
+class ExecutorSettings(BaseModel):
+    """Servo rate and the safety thresholds of the executor."""
+
+    servo_rate: float = Field(100.0, gt=0.0, description="joint servo rate (Hz)")
+    contact_limit: float = Field(15.0, gt=0.0, description="force (N) that counts as unplanned contact in position mode")
+    max_force: float = Field(80.0, gt=0.0, description="force (N) that stops any motion, guarded or not")
+    touch_force: float = Field(3.0, gt=0.0, description="force (N) a task's guarded descent stops at")
+    extract_limit: float = Field(40.0, gt=0.0, description="pull (N) at which extraction gives up: the peg is stuck")
+    task_speed: float = Field(0.2, gt=0.0, le=1.0, description="speed of task motions (fraction of maximum)")
+    search_step: float = Field(0.0005, gt=0.0, description="spacing of the hole-search spiral (m)")
+    search_radius: float = Field(0.004, gt=0.0, description="how far from the first contact the search goes (m)")
+    interference_zones: bool = Field(True, description="route joint moves round the arm's interference zones (seed 001)")
+
+
+@dataclass(frozen=True)
+class ExecutorEvent:
+    """A status change of one numbered statement, with the robot's state at that moment."""
+
+    number: int
+    state: StatementState
+    reason: str | None
+    snapshot: RobotSnapshot
+
+
+class StepFailure(TeleprogError):
+    """Something the executor did not expect: the statement fails with this reason."""
+
+
+_Runner = Generator[None, None, str | None]
+
+
+class Executor:
+    """One arm, one buffer of numbered statements, stepped one servo period at a time."""
+
+    def __init__(self, cell: Cell, world: SimWorld, settings: ExecutorSettings | None = None, q0: np.ndarray | None = None):
+        self.cell = cell
+        self.robot = cell.robot
+        self.world = world
+        self.settings = settings or ExecutorSettings()
+        self.dt = 1.0 / self.settings.servo_rate
+        self.time = 0.0
+        self.q = np.array(cell.q_home if q0 is None else q0, dtype=float)
+        self.state = RobotState.IDLE
+        self.mode = Mode.POSITION
+        zones = None
+        if self.settings.interference_zones and self.robot.dof >= 3:
+            from shared.collision.interference import robot_zones
+
+            zones = robot_zones(self.robot)
+        self.interpreter = Interpreter.for_cell(cell, self.q, zones=zones)
+        self.queue: deque[tuple[int, Statement]] = deque()
+        self.current: tuple[int, Statement] | None = None
+        self._runner: _Runner | None = None
+        self.wrench = np.zeros(6)
+        self.hold_queue = False  # True while no console is connected: start nothing new
+        self._events: list[ExecutorEvent] = []
+
+    # -- inputs -------------------------------------------------------------------------------
+    def enqueue(self, number: int, statement: Statement) -> None:
+        self.queue.append((number, statement))
+
+    def stop(self) -> tuple[bool, str]:
+        if self.state is RobotState.RUNNING:
+            self.state = RobotState.STOPPED
+            return True, "stopped: arm holding; resume, skip or abort"
+        return False, f"nothing to stop (robot {self.state.name.lower()})"
+
+    def resume(self) -> tuple[bool, str]:
+        if self.state in (RobotState.STOPPED, RobotState.FAULT):
+            self.state = RobotState.RUNNING if self.current is not None else RobotState.IDLE
+            return True, "resumed"
+        return False, f"nothing to resume (robot {self.state.name.lower()})"
+
+    def skip(self, number: int) -> tuple[bool, str]:
+        if self.current is None or self.current[0] != number:
+            return False, f"statement {number} is not the current one"
+        self._finish(StatementState.SKIPPED, "skipped by the operator")
+        if self.state is RobotState.STOPPED:
+            self.state = RobotState.IDLE
+        return True, f"statement {number} skipped"
+
+    def abort(self) -> tuple[bool, str]:
+        dropped = 0
+        if self.current is not None:
+            self._finish(StatementState.ABORTED, "aborted by the operator")
+            dropped += 1
+        while self.queue:
+            number, _ = self.queue.popleft()
+            self._emit(number, StatementState.ABORTED, "flushed from the buffer by abort")
+            dropped += 1
+        self.state = RobotState.IDLE
+        return True, f"aborted {dropped} statement(s)"
+
+    # -- the servo loop -----------------------------------------------------------------------
+    def tick(self) -> list[ExecutorEvent]:
+        """Advance one servo period; return the status changes it produced."""
+        self.time += self.dt
+        startable = self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.hold_queue
+        if startable and self.current is None and self.queue:
+            self._start(*self.queue.popleft())
+        if self.state is RobotState.RUNNING and self._runner is not None:
+            try:
+                next(self._runner)
+            except StopIteration as done:
+                self._finish(StatementState.DONE, done.value)
+            except (StepFailure, PlanRefused, TeleprogError) as exc:
+                self._fail(str(exc))
+        self._sense()
+        events, self._events = self._events, []
+        return events
+
+    def drain_events(self) -> list[ExecutorEvent]:
+        """Status changes produced outside ``tick`` (by skip or abort), in order."""
+        events, self._events = self._events, []
+        return events
+
+    def run_until_idle(self, max_seconds: float = 600.0) -> list[ExecutorEvent]:
+        """Tick until nothing is running or queued (or the robot waits for the operator)."""
+        events: list[ExecutorEvent] = []
+        t_end = self.time + max_seconds
+        while self.time < t_end:
+            events += self.tick()
+            if self.current is None and not self.queue:
+                break
+            if self.state in (RobotState.FAULT, RobotState.STOPPED):
+                break
+        return events
+
+    # -- statements ---------------------------------------------------------------------------
+    def _start(self, number: int, statement: Statement) -> None:
+        self.current = (number, statement)
+        self.state = RobotState.RUNNING
+        self._emit(number, StatementState.RUNNING, None)
+        self._runner = self._run(statement)
+
+    def _finish(self, state: StatementState, reason: str | None) -> None:
+        assert self.current is not None
+        number, _ = self.current
+        self.current = None
+        self._runner = None
+        self._emit(number, state, reason)
+        if self.state is RobotState.RUNNING:
+            self.state = RobotState.IDLE
+
+    def _fail(self, reason: str) -> None:
+        log.warning("statement %s failed: %s", self.current[0] if self.current else "?", reason)
+        self.state = RobotState.FAULT  # before the report, so the report carries it
+        self._finish(StatementState.FAILED, reason)
+
+    def _emit(self, number: int, state: StatementState, reason: str | None) -> None:
+        self._events.append(ExecutorEvent(number, state, reason, self.snapshot()))
+
+    def _run(self, statement: Statement) -> _Runner:
+        if isinstance(statement, TaskCall):
+            return (yield from self._task(statement))
+        self.interpreter.resume_at(self.q)
+        segment = self.interpreter.plan_next(statement)
+        if isinstance(statement, SetMode):
+            self.mode = statement.mode
+        if segment.kind is SegmentKind.PARAMETER:
+            return f"event {segment.event} reached" if segment.event else None
+        outcome = yield from self._play(segment)
+        return None if outcome is StopReason.COMPLETED else f"stopped by UNTIL ({outcome.value})"
+
+    def _play(self, segment: Segment, expect_contact: bool = False) -> Generator[None, None, StopReason]:
+        """Step a planned motion one servo period per tick; check for surprises on every step."""
+        guarded = expect_contact or isinstance(segment.until, (UntilForce, UntilContact)) or self.mode is Mode.FORCE
+        stepper = segment.stepper(_WorldSensors(self.world), dt=self.dt, t0=self.time)
+        while True:
+            step = stepper.step()
+            self._move_to(step.q, guarded)
+            if step.done:
+                return step.reason or StopReason.COMPLETED
+            yield
+
+    def _move_to(self, q: np.ndarray, guarded: bool) -> None:
+        """Servo to ``q``; on a force over the limit, stop where the limit was crossed and fail."""
+        q = np.asarray(q, dtype=float).copy()
+        limit = self.settings.max_force if guarded else self.settings.contact_limit
+        contact = self.world.contact(q)
+        if contact.touching and contact.magnitude > limit:
+            q = self._first_reach(self.q, q, limit)
+            self.q = q
+            self.world.follow(q)
+            felt = self.world.contact(q)
+            if guarded:
+                raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {limit:g} N ({felt.what})")
+            raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what}")
+        self.q = q
+        self.world.follow(q)
+
+    def _first_reach(self, q_from: np.ndarray, q_to: np.ndarray, limit: float) -> np.ndarray:
+        """Where on the servo step from ``q_from`` to ``q_to`` the force first reaches ``limit``
+        (bisection: the arm stops there, as a real force-monitored servo would)."""
+        lo, hi = 0.0, 1.0
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            if self.world.contact(q_from + mid * (q_to - q_from)).magnitude > limit:
+                hi = mid
+            else:
+                lo = mid
+        return q_from + hi * (q_to - q_from)
+
+    def _sense(self) -> None:
+        contact = self.world.contact(self.q)
+        self.wrench = np.concatenate([contact.force, np.zeros(3)])
+
+    # -- tasks ----------------------------------------------------------------------------------
+    def _task(self, call: TaskCall) -> _Runner:
+        spec = find_task(call.name)
+        objects = [o.name for o in self.cell.objects]
+        features = list(self.cell.features)
+        if spec.name == "grasp":
+            name = resolve_name(call.args[0], objects) if call.args else None
+            held, detail = self.world.grasp(self.q, name)
+            if not held:
+                raise StepFailure(f"grasp failed: {detail}")
+            return detail
+        if spec.name == "release":
+            return self.world.release(self.q)
+        peg = resolve_name(call.args[0], objects) if call.args else None
+        hole = resolve_name(call.args[1], features) if len(call.args) > 1 else None
+        if peg is None or hole is None:
+            raise StepFailure(f"task {call.name}: unknown peg or hole in {call.args}")
+        held = self.world.held_peg()
+        if held is None or held[0] != peg:
+            raise StepFailure(f"task {call.name}: the gripper does not hold {peg}")
+        if spec.name == "extract_peg":
+            return (yield from self._extract(peg, hole))
+        if spec.name == "insert_peg":
+            return (yield from self._insert(peg, hole))
+        raise StepFailure(f"task {call.name} is known but this robot cannot run it")
+
+    def _tool_line(self, world_p_target: np.ndarray, until: UntilForce | UntilContact | None = None) -> Segment:
+        """Plan a straight tool move to a world point at task speed, orientation kept."""
+        self.interpreter.resume_at(self.q)
+        statement = Draw(
+            position=tuple(float(v) for v in world_p_target),
+            frame=Frame.WORLD,
+            speed=Speed(value=self.settings.task_speed, unit=SpeedUnit.FRACTION),
+            until=until,
+        )
+        return self.interpreter.plan_next(statement)
+
+    def _world_tcp(self) -> np.ndarray:
+        return self.world.world_T_tcp(self.q)
+
+    def _foot_offset(self, peg: str) -> np.ndarray:
+        """Vector from the tool centre point to the peg's foot, in the world frame."""
+        state = self.world.pegs[peg]
+        world_T_peg = self._world_tcp() @ state.tool_T_peg
+        foot = world_T_peg[:3, 3] - world_T_peg[:3, 2] * state.half_size[2]
+        return foot - self._world_tcp()[:3, 3]
+
+    def _extract(self, peg: str, hole: str) -> _Runner:
+        axis = self.cell.features[hole].world_T_feature[:3, 2]
+        target = self._world_tcp()[:3, 3] + EXTRACT_LIFT_M * axis
+        segment = self._tool_line(target, until=UntilForce(newtons=self.settings.extract_limit))
+        reason = yield from self._play(segment, expect_contact=True)
+        if reason is not StopReason.COMPLETED:
+            raise StepFailure(f"extract_peg: {peg} is stuck in {hole} (pull over {self.settings.extract_limit:g} N)")
+        return f"{peg} extracted from {hole}"
+
+    def _insert(self, peg: str, hole: str) -> _Runner:
+        s = self.settings
+        mouth = self.cell.features[hole].world_T_feature[:3, 3]  # where the model says the hole is
+        foot = self._foot_offset(peg)
+        depth = self.world.settings.hole_depth
+        # 1. approach: the peg's foot 5 mm above the modelled mouth
+        yield from self._play(self._tool_line(mouth + np.array([0.0, 0.0, 0.005]) - foot))
+        # 2. guarded descent to first contact (or straight in if the hole is where the model says)
+        reason = yield from self._play(
+            self._tool_line(mouth - np.array([0.0, 0.0, depth + 0.002]) - foot, UntilForce(newtons=s.touch_force)),
+            expect_contact=True,
+        )
+        foot_z = lambda: self._world_tcp()[2, 3] + foot[2]  # noqa: E731
+        if foot_z() > mouth[2] - 0.002:
+            # 3. landed on the plate: force-guided search on a square spiral around the contact
+            contact_xy = self._world_tcp()[:2, 3].copy()
+            z_touch = self._world_tcp()[2, 3]
+            found = False
+            for dx, dy in _square_spiral(s.search_step, s.search_radius):
+                lift = np.array([*contact_xy + (dx, dy), z_touch + 0.001])
+                yield from self._play(self._tool_line(lift))
+                probe = np.array([*contact_xy + (dx, dy), z_touch - 0.003])
+                yield from self._play(self._tool_line(probe, UntilForce(newtons=s.touch_force)), expect_contact=True)
+                if self._world_tcp()[2, 3] < z_touch - 0.002:
+                    found = True
+                    break
+            if not found:
+                raise StepFailure(f"insert_peg: no hole found within {s.search_radius * 1e3:g} mm of the first contact")
+        # 4. seat the peg: down until the floor pushes back
+        here = self._world_tcp()[:3, 3]
+        floor_target = np.array([here[0], here[1], mouth[2] - depth - 0.002 - foot[2]])
+        reason = yield from self._play(self._tool_line(floor_target, UntilForce(newtons=s.touch_force)), expect_contact=True)
+        if reason is StopReason.COMPLETED:
+            raise StepFailure(f"insert_peg: {peg} went deeper than {hole}'s floor; the hole is not where expected")
+        return f"{peg} seated in {hole}"
+
+    # -- reports --------------------------------------------------------------------------------
+    def snapshot(self) -> RobotSnapshot:
+        base_T_tcp = self.robot.fk(self.q) @ self.cell.flange_T_tcp
+        return RobotSnapshot(
+            state=self.state,
+            mode=ControlMode.FORCE if self.mode is Mode.FORCE else ControlMode.POSITION,
+            q=tuple(float(v) for v in self.q),
+            base_p_tool=tuple(float(v) for v in base_T_tcp[:3, 3]),
+            tool_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_tcp[:3, :3])),
+            gripper=0.0 if self.world.gripper_closed else 0.03,
+            wrench=tuple(float(v) for v in self.wrench),
+        )
+
+    @property
+    def current_number(self) -> int:
+        return self.current[0] if self.current is not None else 0
+
+
+class _WorldSensors:
+    """The world's force sensor as the planner's ``SensorModel``."""
+
+    def __init__(self, world: SimWorld) -> None:
+        self.world = world
+
+    def force(self, t: float, q: np.ndarray) -> float:
+        return self.world.contact(q).magnitude
+
+    def contact(self, t: float, q: np.ndarray) -> bool:
+        return self.world.contact(q).touching
+
+
+def _square_spiral(step: float, radius: float) -> Iterator[tuple[float, float]]:
+    """Offsets on a square spiral out from the origin: (0,0), (s,0), (s,s), (0,s), (-s,s), ..."""
+    x = y = 0.0
+    yield x, y
+    leg, direction = 1, 0
+    moves = ((1, 0), (0, 1), (-1, 0), (0, -1))
+    while max(abs(x), abs(y)) <= radius:
+        for _ in range(2):
+            dx, dy = moves[direction % 4]
+            for _ in range(leg):
+                x, y = x + dx * step, y + dy * step
+                if max(abs(x), abs(y)) > radius:
+                    return
+                yield x, y
+            direction += 1
+        leg += 1

@@ -1,0 +1,174 @@
+"""The telerobot process: ``RobotCore`` behind two WebSocket channels, driven by a real clock.
+
+* ``/command``: text messages (``shared.wire.messages``) and binary command units
+  (``shared.wire.units``) in; answers, status reports and acknowledgements out, written by one
+  task per connection so they leave in the order the core produced them.
+* ``/telemetry``: one fixed-size binary frame (``shared.wire.telemetry``) to every subscriber at
+  ``telemetry_rate``.
+* ``GET /health``: a JSON line (robot state, buffer length, statements numbered).
+
+One console connection at a time on ``/command``: a second one replaces the first (the console
+reconnecting through a restarted link must not wait for the old socket to time out).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import http
+import json
+import logging
+import time
+from collections.abc import Callable
+
+from pydantic import BaseModel
+from pydantic_settings import BaseSettings, SettingsConfigDict
+from websockets.asyncio.server import ServerConnection, serve
+from websockets.datastructures import Headers
+from websockets.exceptions import ConnectionClosed
+from websockets.http11 import Response
+
+from robot_sim.core import RobotCore
+from robot_sim.executor import Executor, ExecutorSettings
+from robot_sim.world import SimWorld, WorldSettings
+from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.wire.messages import encode_message
+from shared.wire.telemetry import FRAME_RATE_HZ
+
+log = logging.getLogger("teleprog.robot")
+
+MAX_MESSAGE_BYTES = 4 << 20
+
+
+class RobotSettings(BaseSettings):
+    """The telerobot process: defaults that run, then ``TELEPROG_ROBOT_*`` variables, then flags."""
+
+    model_config = SettingsConfigDict(env_prefix="TELEPROG_ROBOT_", env_nested_delimiter="__")
+
+    host: str = "127.0.0.1"
+    port: int = 8766
+    cell: str = str(DEFAULT_CELL)
+    telemetry_rate: float = FRAME_RATE_HZ
+    world: WorldSettings = WorldSettings()
+    executor: ExecutorSettings = ExecutorSettings()
+
+
+class RobotService:
+    """Sockets and clock around one ``RobotCore``."""
+
+    def __init__(self, settings: RobotSettings) -> None:
+        self.settings = settings
+        cell = load_cell(settings.cell)
+        world = SimWorld(cell, cell.robot, settings.world)
+        self.core = RobotCore(Executor(cell, world, settings.executor))
+        self._command: ServerConnection | None = None
+        self._outbox: asyncio.Queue[BaseModel] | None = None
+        self._telemetry: set[ServerConnection] = set()
+        self._server = None
+        self.port = settings.port
+
+    # -- lifecycle ------------------------------------------------------------------------------
+    async def run(self, on_ready: Callable[[int], None] | None = None) -> None:
+        async with serve(
+            self._handle,
+            self.settings.host,
+            self.settings.port,
+            process_request=self._process_request,
+            max_size=MAX_MESSAGE_BYTES,
+            compression=None,
+        ) as server:
+            self._server = server
+            self.port = next(iter(server.sockets)).getsockname()[1]
+            if on_ready:
+                on_ready(self.port)
+            await asyncio.gather(self._servo(), self._publish())
+
+    def _process_request(self, connection: ServerConnection, request) -> Response | None:
+        if request.path == "/health":
+            ex = self.core.executor
+            body = json.dumps(
+                {
+                    "status": "ok",
+                    "state": ex.state.name.lower(),
+                    "queued": len(ex.queue),
+                    "current": ex.current_number,
+                    "numbered": self.core.receiver.next_number - 1,
+                    "console": self.core.connected,
+                }
+            ).encode()
+            return Response(http.HTTPStatus.OK, "OK", Headers({"Content-Type": "application/json"}), body)
+        if request.path not in ("/command", "/telemetry"):
+            return connection.respond(http.HTTPStatus.NOT_FOUND, f"no channel at {request.path}\n")
+        return None
+
+    # -- channels ---------------------------------------------------------------------------------
+    async def _handle(self, ws: ServerConnection) -> None:
+        if ws.request.path == "/telemetry":
+            self._telemetry.add(ws)
+            try:
+                await ws.wait_closed()
+            finally:
+                self._telemetry.discard(ws)
+            return
+        await self._command_connection(ws)
+
+    async def _command_connection(self, ws: ServerConnection) -> None:
+        if self._command is not None:
+            log.info("a new console connection replaces the previous one")
+            await self._command.close(1001, "replaced by a new console connection")
+        self._command = ws
+        outbox: asyncio.Queue[BaseModel] = asyncio.Queue()
+        self._outbox = outbox
+        self.core.connect()
+        writer = asyncio.create_task(self._write(ws, outbox))
+        try:
+            async for message in ws:
+                replies = self.core.on_unit(message) if isinstance(message, bytes) else self.core.on_text(message)
+                for r in replies:
+                    outbox.put_nowait(r)
+        except ConnectionClosed:
+            pass
+        finally:
+            if self._command is ws:
+                self._command = None
+                self._outbox = None
+                self.core.disconnect()
+            writer.cancel()
+
+    async def _write(self, ws: ServerConnection, outbox: asyncio.Queue[BaseModel]) -> None:
+        try:
+            while True:
+                message = await outbox.get()
+                await ws.send(encode_message(message))
+        except (ConnectionClosed, asyncio.CancelledError):
+            return
+
+    # -- clocks ------------------------------------------------------------------------------------
+    async def _servo(self) -> None:
+        """Tick the executor at its servo rate, catching up if the event loop was late."""
+        dt = self.core.executor.dt
+        next_t = time.monotonic()
+        while True:
+            next_t += dt
+            for report in self.core.tick():
+                if self._outbox is not None:
+                    self._outbox.put_nowait(report)
+            now = time.monotonic()
+            if next_t - now > 0:
+                await asyncio.sleep(next_t - now)
+            elif now - next_t > 1.0:  # far behind (suspended?): do not replay a second of servo ticks
+                next_t = now
+            else:
+                await asyncio.sleep(0)
+
+    async def _publish(self) -> None:
+        period = 1.0 / self.settings.telemetry_rate
+        next_t = time.monotonic()
+        while True:
+            next_t += period
+            frame = self.core.telemetry()
+            for ws in list(self._telemetry):
+                try:
+                    await ws.send(frame)
+                except ConnectionClosed:
+                    self._telemetry.discard(ws)
+            await asyncio.sleep(max(0.0, next_t - time.monotonic()))

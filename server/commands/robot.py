@@ -1,0 +1,61 @@
+"""``teleprog robot``: the simulated telerobot as its own process (``robot_sim``)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _cmd_robot(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from robot_sim.service import RobotService, RobotSettings
+    from server.cli import print_json
+    from shared.cells.loader import load_cell
+
+    settings = RobotSettings()
+    overrides: dict[str, object] = {k: v for k, v in (("host", args.host), ("port", args.port), ("cell", args.cell)) if v is not None}
+    world = {
+        k: v
+        for k, v in (
+            ("seed", args.seed),
+            ("object_offset", None if args.object_offset_mm is None else args.object_offset_mm / 1000.0),
+            ("force_noise", args.force_noise_n),
+            ("stick_probability", args.stick_probability),
+        )
+        if v is not None
+    }
+    settings = settings.model_copy(update={**overrides, "world": settings.world.model_copy(update=world)})
+    settings = RobotSettings.model_validate(settings.model_dump())  # validate the overrides too
+    load_cell(settings.cell)  # a broken cell is a one-line error before anything listens
+
+    def ready(port: int) -> None:
+        url = f"ws://{settings.host}:{port}"
+        if args.json:
+            print_json({"listening": url, "paths": ["/command", "/telemetry"], "cell": settings.cell,
+                        "world": settings.world.model_dump()})
+        else:
+            w = settings.world
+            print(f"teleprog robot: {url} (/command, /telemetry) on {settings.cell}; seed {w.seed}, "
+                  f"object offsets up to {w.object_offset * 1e3:g} mm, force noise {w.force_noise:g} N, "
+                  f"stick probability {w.stick_probability:g}", flush=True)
+
+    try:
+        asyncio.run(RobotService(settings).run(on_ready=ready))
+    except OSError as exc:
+        from shared.errors import InputError
+
+        raise InputError(f"cannot listen on {settings.host}:{settings.port}: {exc.strerror or exc}") from None
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("robot", help="run the simulated telerobot (command and telemetry channels)")
+    p.add_argument("--port", type=int, default=None, help="port to listen on (default 8766; 0: any free)")
+    p.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
+    p.add_argument("--cell", default=None, help="cell file (default assets/cells/peg_in_hole.toml)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the world's offsets and noise (default 0)")
+    p.add_argument("--object-offset-mm", type=float, default=None, help="largest xy offset of pegs and holes from the model")
+    p.add_argument("--force-noise-n", type=float, default=None, help="std of force-sensor noise in N")
+    p.add_argument("--stick-probability", type=float, default=None, help="chance the peg sticks in its hole")
+    p.add_argument("--json", action="store_true", help="print the listening address as JSON")
+    p.set_defaults(handler=_cmd_robot)

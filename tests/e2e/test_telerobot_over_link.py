@@ -1,0 +1,163 @@
+"""The real telerobot process behind the real link process, driven by the headless client.
+
+One test runs in real time through the thesis's 3 s link (the peg transfer end to end); the
+others use a short delay to keep the suite quick: killing and restarting the link mid-program
+loses no statement and runs none twice, and stop overtakes a full buffer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+
+from server.robot_client import RobotClient
+from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.parser import parse_program
+from shared.language.statements import Move
+from shared.paths import ASSETS_DIR
+from shared.wire.messages import RobotState, StatementState
+from support import PROJECT_DIR, free_port, stop_process, wait_http
+
+PEG_TRANSFER = parse_program((ASSETS_DIR / "programs" / "peg_transfer.tp").read_text()).statements
+CELL = load_cell(DEFAULT_CELL)
+
+
+class Proc:
+    """A ``teleprog`` server subprocess on a fixed port, so it can be killed and started again."""
+
+    def __init__(self, tmp_path: Path, name: str, *args: str, port: int | None = None) -> None:
+        self.port = port or free_port()
+        self.args = args
+        self.name = name
+        self.log_path = tmp_path / f"{name}-{self.port}.log"
+        self.proc: subprocess.Popen | None = None
+
+    def start(self) -> Proc:
+        log = self.log_path.open("a")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "server.cli", self.name, "--port", str(self.port), *self.args],
+            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        try:
+            wait_http(f"http://127.0.0.1:{self.port}/health", self.proc, timeout=60)
+        except Exception:
+            stop_process(self.proc)
+            raise RuntimeError(f"{self.name} did not start:\n{self.log_path.read_text()}") from None
+        return self
+
+    def kill(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait()
+
+    def stop(self) -> None:
+        if self.proc is not None:
+            stop_process(self.proc)
+
+    def health(self) -> dict:
+        return httpx.get(f"http://127.0.0.1:{self.port}/health", timeout=5).json()
+
+
+@pytest.fixture
+def robot(tmp_path):
+    proc = Proc(tmp_path, "robot", "--seed", "3").start()
+    yield proc
+    proc.stop()
+
+
+def test_peg_transfer_through_a_real_3_s_link(robot, tmp_path) -> None:
+    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "3000").start()
+    try:
+        finals, elapsed, frame = asyncio.run(_peg_transfer(f"ws://127.0.0.1:{link.port}"))
+    finally:
+        link.stop()
+    assert sorted(finals) == list(range(1, len(PEG_TRANSFER) + 1))
+    assert all(r.state is StatementState.DONE for r in finals.values()), {n: r.reason for n, r in finals.items()}
+    assert "seated in HOLE2" in finals[12].reason
+    # the answer and the last report each crossed 3 s, plus the program's own motion
+    assert elapsed > 6.0 + 15.0
+    # telemetry arrives through the same link and shows the arm where the last report put it
+    np.testing.assert_allclose(frame.q, finals[len(PEG_TRANSFER)].robot.q, atol=1e-9)
+    assert robot.health()["numbered"] == len(PEG_TRANSFER)
+
+
+async def _peg_transfer(url: str):
+    async with RobotClient(url) as client:
+        t0 = time.monotonic()
+        numbers = await client.submit(PEG_TRANSFER, timeout=30)
+        finals = await client.wait_final(numbers, timeout=120)
+        elapsed = time.monotonic() - t0
+        await asyncio.sleep(3.5)  # telemetry of the resting arm, one delay old
+        return finals, elapsed, client.telemetry
+
+
+def test_killing_the_link_mid_program_loses_nothing_and_runs_nothing_twice(robot, tmp_path) -> None:
+    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "300").start()
+    try:
+        finals, reconnects = asyncio.run(_kill_mid_program(link))
+    finally:
+        link.stop()
+    assert sorted(finals) == list(range(1, len(PEG_TRANSFER) + 1))
+    assert all(r.state is StatementState.DONE for r in finals.values()), {n: r.reason for n, r in finals.items()}
+    assert reconnects >= 2
+    health = robot.health()
+    assert health["numbered"] == len(PEG_TRANSFER)  # every statement numbered (and so run) once
+
+
+async def _kill_mid_program(link: Proc):
+    async with RobotClient(f"ws://127.0.0.1:{link.port}", reconnect_delay=0.1) as client:
+        submitted = asyncio.create_task(client.submit(PEG_TRANSFER[:7], timeout=60))
+        await asyncio.sleep(0.1)  # the units are inside the link
+        link.kill()
+        await asyncio.sleep(0.5)
+        await asyncio.to_thread(link.start)
+        first = await submitted
+        await asyncio.sleep(4.0)  # mid-motion
+        link.kill()
+        rest = asyncio.create_task(client.submit(PEG_TRANSFER[7:], timeout=60))
+        await asyncio.sleep(1.0)
+        await asyncio.to_thread(link.start)
+        second = await rest
+        finals = await client.wait_final(first + second, timeout=120)
+        # no report was delivered twice to the application
+        finals_seen = [r.number for r in client.reports if r.state.final]
+        assert len(finals_seen) == len(set(finals_seen))
+        return finals, client.reconnects
+
+
+def test_stop_overtakes_a_full_buffer_through_the_link(robot, tmp_path) -> None:
+    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "200").start()
+    try:
+        state_after, queued, moved = asyncio.run(_stop_full_buffer(f"ws://127.0.0.1:{link.port}"))
+    finally:
+        link.stop()
+    assert state_after is RobotState.STOPPED
+    assert queued > 900
+    assert moved < 1e-9
+
+
+async def _stop_full_buffer(url: str):
+    home = tuple(float(v) for v in CELL.q_home)
+    away = tuple(float(v) for v in CELL.q_home + np.radians([25.0, 0, 0, 0, 0, 0]))
+    program = [Move(joints=away if i % 2 == 0 else home) for i in range(1000)]
+    async with RobotClient(url) as client:
+        await client.submit(program, timeout=30)
+        await asyncio.sleep(1.0)
+        ack = await client.stop(timeout=10)
+        assert ack.applied, ack.detail
+        await asyncio.sleep(0.6)  # telemetry one delay behind
+        q1 = np.array(client.telemetry.q)
+        await asyncio.sleep(0.5)
+        q2 = np.array(client.telemetry.q)
+        state = client.telemetry.state
+        queued = 1000 - len([r for r in client.reports if r.state.final])
+        await client.abort(timeout=10)
+        return state, queued, float(np.max(np.abs(q2 - q1)))

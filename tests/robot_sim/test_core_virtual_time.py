@@ -1,0 +1,223 @@
+"""Console end, delayed link and telerobot, all sans-I/O, in virtual time.
+
+``CommandSender`` (the console's end) talks to ``RobotCore`` through ``LinkCore`` with the
+thesis's 3 s each way; one loop advances a virtual clock by the robot's servo period. Minutes of
+robot time run in seconds, so the properties the issue asks for are checked on whole programs:
+every statement ends exactly once, cuts of the link lose nothing and run nothing twice, stop
+overtakes a full buffer, malformed units never change the robot's state.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from robot_sim.core import RobotCore
+from robot_sim.executor import Executor
+from robot_sim.world import SimWorld, WorldSettings
+from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.parser import parse_program
+from shared.language.statements import Move
+from shared.link.core import Direction, LinkCore, LinkFault, LinkParams
+from shared.paths import ASSETS_DIR
+from shared.wire.messages import (
+    Rejected,
+    RobotState,
+    StatementState,
+    Stop,
+    decode_message,
+    encode_message,
+)
+from shared.wire.session import CommandSender
+from shared.wire.units import encode_unit
+
+CELL = load_cell(DEFAULT_CELL)
+PEG_TRANSFER = parse_program((ASSETS_DIR / "programs" / "peg_transfer.tp").read_text()).statements
+FINAL = {StatementState.DONE, StatementState.FAILED, StatementState.SKIPPED, StatementState.ABORTED}
+
+
+class VirtualSession:
+    """Console sender, link and robot on one virtual clock; the link can be cut and reopened."""
+
+    def __init__(self, delay: float = 3.0, **world: object) -> None:
+        self.robot = RobotCore(Executor(CELL, SimWorld(CELL, CELL.robot, WorldSettings(**world))), session_id="virtual")
+        self.sender = CommandSender("console-test")
+        self.params = LinkParams(delay_s=delay)
+        self.now = 0.0
+        self.link: LinkCore | None = None
+        self.received: list = []  # every message the console got, in order
+        self.open()
+
+    # -- connection -------------------------------------------------------------------------
+    def open(self) -> None:
+        self.link = LinkCore(self.params)
+        self.robot.connect()
+        self._up(encode_message(self.sender.hello()))
+
+    def cut(self) -> None:
+        """The link breaks: whatever is in flight both ways is gone."""
+        assert self.link is not None
+        self.link.cut()
+        self.link = None
+        self.robot.disconnect()
+
+    # -- traffic ------------------------------------------------------------------------------
+    def _up(self, payload: bytes | str) -> None:
+        if self.link is not None:
+            self.link.send(self.now, Direction.UP, payload)
+
+    def _down(self, messages: list) -> None:
+        for m in messages:
+            if self.link is not None:
+                self.link.send(self.now, Direction.DOWN, encode_message(m))
+
+    def submit(self, statements) -> int:
+        comm_id, units = self.sender.submit(list(statements))
+        for u in units:
+            self._up(u)
+        return comm_id
+
+    def command(self, kind, **fields) -> None:
+        self._up(encode_message(self.sender.command(kind, **fields)))
+
+    def raw_up(self, payload: bytes | str) -> None:
+        self._up(payload)
+
+    def step(self) -> None:
+        self.now += self.robot.executor.dt
+        if self.link is not None:
+            for item in self.link.poll(self.now):
+                if isinstance(item, LinkFault):
+                    self.cut()
+                    break
+                if item.direction is Direction.UP:
+                    data = item.payload
+                    self._down(self.robot.on_unit(data) if isinstance(data, bytes) else self.robot.on_text(data))
+                else:
+                    msg = decode_message(item.payload)
+                    self.received.append(msg)
+                    if msg.type == "welcome":
+                        for again in self.sender.on_welcome(msg):
+                            self._up(again if isinstance(again, bytes) else encode_message(again))
+                    else:
+                        self.sender.on_message(msg)
+        self._down(self.robot.tick())
+
+    def run(self, seconds: float) -> None:
+        end = self.now + seconds
+        while self.now < end:
+            self.step()
+
+    def run_until_final(self, numbers, limit: float = 600.0) -> None:
+        end = self.now + limit
+        while self.now < end and any(self.sender.final_state(n) is None for n in numbers):
+            self.step()
+
+    # -- what the robot did ------------------------------------------------------------------
+    def robot_finals(self) -> Counter:
+        return Counter(r.number for r in self.robot.receiver.reports if r.state in FINAL)
+
+    def robot_runs(self) -> Counter:
+        return Counter(r.number for r in self.robot.receiver.reports if r.state is StatementState.RUNNING)
+
+
+def test_peg_transfer_through_a_3_s_link_in_virtual_time() -> None:
+    s = VirtualSession()
+    s.submit(PEG_TRANSFER)
+    numbers = tuple(range(1, len(PEG_TRANSFER) + 1))
+    s.run_until_final(numbers)
+    assert all(s.sender.final_state(n) is StatementState.DONE for n in numbers)
+    assert s.robot.executor.world.pegs["peg"].in_hole == "HOLE2"
+    assert set(s.robot_finals().values()) == {1} and set(s.robot_runs().values()) == {1}
+    # the console learns of the last status one delay after the robot reported it
+    last = max(r.report_seq for r in s.robot.receiver.reports)
+    assert s.sender.last_report_seq == last
+    # the round trip costs the two delays: the program's 16-20 s of motion plus 6 s
+    assert 22.0 < s.now < 30.0
+
+
+@pytest.mark.parametrize("cut_at", [1.0, 3.2, 9.5, 15.0])
+def test_cutting_the_link_mid_program_loses_nothing_and_runs_nothing_twice(cut_at: float) -> None:
+    s = VirtualSession()
+    s.submit(PEG_TRANSFER)
+    s.run(cut_at)
+    s.cut()
+    s.run(2.0)  # the robot finishes the current statement and starts nothing new
+    assert s.robot.executor.hold_queue
+    s.open()
+    numbers = tuple(range(1, len(PEG_TRANSFER) + 1))
+    s.run_until_final(numbers)
+    assert all(s.sender.final_state(n) is StatementState.DONE for n in numbers), s.sender.statuses
+    assert set(s.robot_finals().values()) == {1}
+    assert set(s.robot_runs().values()) == {1}
+    assert s.robot.receiver.next_number == len(PEG_TRANSFER) + 1  # numbered once
+    assert s.robot.executor.world.pegs["peg"].in_hole == "HOLE2"
+
+
+def test_stop_overtakes_a_full_buffer() -> None:
+    s = VirtualSession(delay=0.5)
+    home = tuple(float(v) for v in CELL.q_home)
+    away = tuple(float(v) for v in CELL.q_home + np.radians([20.0, 0, 0, 0, 0, 0]))
+    program = [Move(joints=away if i % 2 == 0 else home) for i in range(1000)]
+    s.submit(program)
+    s.run(2.0)
+    assert s.robot.executor.current_number >= 1 and len(s.robot.executor.queue) > 990
+    s.command(Stop)
+    s.run(0.5 + 2 * s.robot.executor.dt)  # one delay later the stop has been applied
+    assert s.robot.executor.state is RobotState.STOPPED
+    q = s.robot.executor.q.copy()
+    s.run(1.0)
+    np.testing.assert_array_equal(s.robot.executor.q, q)
+    assert len(s.robot.executor.queue) > 990  # nothing behind it ran
+
+
+bad_units = st.one_of(
+    st.binary(max_size=64),
+    st.builds(lambda body: b"TU" + body, st.binary(max_size=64)),
+    st.sampled_from(
+        [
+            encode_unit(1, 0, [], True)[:-1],  # truncated
+            encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True)[:12] + b"{bad json",
+            encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True).replace(b'"MOVE"', b'"JUMP"'),
+            encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True) + b"trailing",
+        ]
+    ),
+)
+bad_texts = st.one_of(
+    st.text(max_size=64),
+    st.sampled_from(['{"type": "explode"}', "[1, 2]", '{"type": "stop"}', "null", '{"type": "hello"}', "x" * 5000]),
+)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.one_of(bad_units, bad_texts), min_size=1, max_size=8))
+def test_malformed_input_is_rejected_and_changes_nothing(items) -> None:
+    core = RobotCore(Executor(CELL, SimWorld(CELL, CELL.robot, WorldSettings(force_noise=0.0))), session_id="fuzz")
+    core.connect()
+    core.on_text(encode_message(CommandSender("fuzzer").hello()))
+    q = core.executor.q.copy()
+    for item in items:
+        replies = core.on_unit(item) if isinstance(item, bytes) else core.on_text(item)
+        for r in replies:
+            json.loads(encode_message(r))  # every reply is a valid message
+    for _ in range(3):
+        core.tick()
+    assert not core.executor.queue and core.executor.current is None
+    assert core.receiver.next_number == 1
+    np.testing.assert_array_equal(core.executor.q, q)
+    assert core.executor.state is RobotState.IDLE
+
+
+def test_a_rejected_unit_says_why() -> None:
+    core = RobotCore(Executor(CELL, SimWorld(CELL, CELL.robot)), session_id="r")
+    core.connect()
+    core.on_text(encode_message(CommandSender("c").hello()))
+    unit = encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True).replace(b'"MOVE"', b'"JUMP"')
+    replies = core.on_unit(unit)
+    rejected = [r for r in replies if isinstance(r, Rejected)]
+    assert rejected and rejected[0].statement_index == 0 and "JUMP" in (rejected[0].detail + (rejected[0].statement or ""))
