@@ -1,16 +1,17 @@
-"""``teleprog bench <name>``: run one of the project's benchmarks (``benchmarks/bench_<name>.py``).
+"""``teleprog bench <name> [options]``: run one of the project's benchmarks.
 
-Each benchmark is a script in ``benchmarks/`` that can also run alone. To be reachable from here
-it defines ``add_arguments(parser)`` and ``main_with(args) -> int`` (importing what it compares
-against only when run) and is listed in ``BENCHMARKS`` below (name -> file, one-line help); it
-then becomes ``teleprog bench <name>``.
-The scripts live beside the source checkout, not in the installed package: they compare against
-libraries of the ``bench`` extra.
+Every script ``benchmarks/bench_<name>.py`` is a benchmark called ``<name>``; it can also run
+alone. A script that defines ``add_arguments(parser)`` and ``main_with(args) -> int`` gets its
+options parsed here (``teleprog bench collision --json``); any other script's ``main()`` runs with
+the remaining arguments as its command line. Scripts are found and loaded only when ``bench`` is
+the command, so other subcommands start fast. They live beside the source checkout, not in the
+installed package, and compare against libraries of the ``bench`` extra.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib.util
 import sys
 from pathlib import Path
@@ -19,15 +20,23 @@ from shared.errors import InputError
 
 BENCH_DIR = Path(__file__).resolve().parents[2] / "benchmarks"
 
-BENCHMARKS: dict[str, tuple[str, str]] = {
-    "collision": ("bench_collision.py", "scene collision checks and distances against coal and python-fcl"),
-}
+
+def discover() -> dict[str, Path]:
+    """Benchmark name -> script, from the files in ``benchmarks/``."""
+    if not BENCH_DIR.is_dir():
+        return {}
+    return {p.stem.removeprefix("bench_"): p for p in sorted(BENCH_DIR.glob("bench_*.py"))}
 
 
-def _load(file: str):
-    path = BENCH_DIR / file
-    if not path.is_file():
-        raise InputError(f"benchmark script {path} is missing (benchmarks run from a source checkout)")
+def _summary(path: Path) -> str:
+    try:
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+    except (OSError, SyntaxError):
+        return ""
+    return doc.strip().splitlines()[0] if doc.strip() else ""
+
+
+def _load(path: Path):
     name = f"teleprog_bench_{path.stem}"
     if name in sys.modules:
         return sys.modules[name]
@@ -36,37 +45,41 @@ def _load(file: str):
     sys.modules[name] = module  # dataclasses look their module up while the script runs
     try:
         spec.loader.exec_module(module)
+    except ImportError as exc:
+        del sys.modules[name]
+        raise InputError(f"benchmark {path.name} needs the 'bench' extra (pip install -e '.[bench]'): {exc}") from None
     except BaseException:
         del sys.modules[name]
         raise
     return module
 
 
-def _add_arguments_of(file: str, parser: argparse.ArgumentParser) -> None:
-    """The script declares its own options (loading it only defines functions: it imports its
-    comparison libraries when run). If it cannot be loaded the error comes when run."""
+def _cmd_bench(args: argparse.Namespace) -> int:
+    scripts = discover()
+    if args.name not in scripts:
+        raise InputError(f"unknown benchmark {args.name!r}; known: {', '.join(scripts) or 'none (no benchmarks/ folder)'}")
+    path = scripts[args.name]
+    module = _load(path)
     try:
-        _load(file).add_arguments(parser)
-    except InputError:
-        parser.add_argument("--json", action="store_true")
-
-
-def _handler(file: str):
-    def run(args: argparse.Namespace) -> int:
-        try:
-            import coal  # noqa: F401
-            import fcl  # noqa: F401
-        except ImportError as exc:
-            raise InputError(f"benchmark needs the 'bench' extra (pip install -e '.[bench]'): {exc}") from None
-        return int(_load(file).main_with(args))
-
-    return run
+        if hasattr(module, "add_arguments") and hasattr(module, "main_with"):
+            parser = type(args._parser)(prog=f"teleprog bench {args.name}", description=_summary(path))
+            module.add_arguments(parser)
+            return int(module.main_with(parser.parse_args(args.rest)) or 0)
+        sys.argv = [str(path), *args.rest]
+        return int(module.main() or 0)
+    except ImportError as exc:
+        raise InputError(f"benchmark {args.name} needs the 'bench' extra (pip install -e '.[bench]'): {exc}") from None
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("bench", help="run a benchmark against established libraries")
-    bench_sub = p.add_subparsers(dest="bench_name", required=True, parser_class=type(p))
-    for name, (file, help_) in BENCHMARKS.items():
-        b = bench_sub.add_parser(name, help=help_)
-        _add_arguments_of(file, b)
-        b.set_defaults(handler=_handler(file))
+    lines = [f"  {name:<12} {_summary(path)}" for name, path in discover().items()]
+    p = sub.add_parser(
+        "bench",
+        help="run a benchmark against established libraries",
+        description="Run a benchmark of benchmarks/ (figures are recorded in benchmarks/README.md).",
+        epilog="benchmarks:\n" + "\n".join(lines),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("name", help="which benchmark (see below)")
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="the benchmark's own options (e.g. --json)")
+    p.set_defaults(handler=_cmd_bench, _parser=p)
