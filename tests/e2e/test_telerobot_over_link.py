@@ -161,3 +161,32 @@ async def _stop_full_buffer(url: str):
         queued = 1000 - len([r for r in client.reports if r.state.final])
         await client.abort(timeout=10)
         return state, queued, float(np.max(np.abs(q2 - q1)))
+
+
+def test_malformed_traffic_is_rejected_and_the_robot_carries_on(robot) -> None:
+    replies, health_before, health_after = asyncio.run(_garbage(robot))
+    assert health_after == health_before  # nothing numbered, queued or moved
+    assert replies and all(r.type == "rejected" for r in replies)
+    assert {r.reason.value for r in replies} >= {"bad_json", "bad_message"}
+
+
+async def _garbage(robot: Proc):
+    from websockets.asyncio.client import connect
+
+    from shared.wire.messages import decode_message, encode_message
+    from shared.wire.session import CommandSender
+    from shared.wire.units import encode_unit
+
+    health_before = robot.health()
+    replies = []
+    async with connect(f"ws://127.0.0.1:{robot.port}/command") as ws:
+        await ws.send(encode_message(CommandSender("fuzz").hello()))
+        assert decode_message(await ws.recv()).type == "welcome"
+        comm1 = encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True)
+        comm2 = encode_unit(2, 0, [Move(joints=(0.0,) * 6)], True)  # comm 1 is answered (rejected) by then
+        for item in [b"\x00" * 7, comm1[:-3], comm2.replace(b'"MOVE"', b'"JUMP"'), b"TU" + b"\xff" * 40,
+                     "{not json", '{"type": "explode"}', "[]", "x" * 100_000]:
+            await ws.send(item)
+            replies.append(decode_message(await asyncio.wait_for(ws.recv(), 5)))
+    await asyncio.sleep(0.2)
+    return replies, health_before, robot.health()
