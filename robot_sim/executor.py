@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from shared.cells.cell import Cell
+from shared.collision import SceneModel
 from shared.errors import TeleprogError
 from shared.language.statements import (
     Draw,
@@ -64,6 +65,7 @@ class ExecutorSettings(BaseModel):
     search_step: float = Field(0.0005, gt=0.0, description="spacing of the hole-search spiral (m)")
     search_radius: float = Field(0.004, gt=0.0, description="how far from the first contact the search goes (m)")
     interference_zones: bool = Field(True, description="route joint moves round the arm's interference zones (seed 001)")
+    collision_checks: bool = Field(True, description="stop on any contact of the arm with the cell (collision core)")
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,13 @@ class Executor:
 
             zones = robot_zones(self.robot)
         self.interpreter = Interpreter.for_cell(cell, self.q, zones=zones)
+        # The collision core watches the arm against the real cell on every servo step. Pegs are
+        # left to the contact model above (their fit in a hole is finer than any mesh test), and
+        # so is the gripper holding or closing on one.
+        self._scene = SceneModel.from_cell(cell) if self.settings.collision_checks else None
+        self._skip = tuple(
+            (peg, other) for peg in world.pegs for other in ("plate", "table", f"link{self.robot.dof}", f"link{self.robot.dof - 1}")
+        )
         self.queue: deque[tuple[int, Statement]] = deque()
         self.current: tuple[int, Statement] | None = None
         self._runner: _Runner | None = None
@@ -242,6 +251,12 @@ class Executor:
             raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what}")
         self.q = q
         self.world.follow(q)
+        if self._scene is not None:
+            poses = {name: peg.world_T_peg for name, peg in self.world.pegs.items()}
+            report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
+            if report.colliding:
+                pair = report.pairs[0]
+                raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
 
     def _first_reach(self, q_from: np.ndarray, q_to: np.ndarray, limit: float) -> np.ndarray:
         """Where on the servo step from ``q_from`` to ``q_to`` the force first reaches ``limit``

@@ -95,7 +95,7 @@ def test_unplanned_contact_stops_the_arm_and_resume_goes_on() -> None:
         "\n".join(
             [
                 "MOVES TO (0, -80, 160) mm (180, 0, 0) deg IN WORK",
-                "DRAW TO (0, -80, 70) mm IN WORK",
+                "DRAW TO (0, -80, 75) mm IN WORK",
                 "TASK grasp(peg)",
                 "TASK extract_peg(peg, HOLE1)",
                 "DRAW TO (0, -30, 120) mm IN WORK",
