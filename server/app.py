@@ -1,23 +1,28 @@
 """The console's FastAPI app: the API for headless clients and the host of the 3D page.
 
 ``create_app(settings)`` builds the app; its lifespan loads the cell, creates the session,
+connects it to the robot (``settings.robot_url``: the link or a robot, over ``RobotClient``),
 starts viser on a private loopback port, and builds the scene and panels. The page is served
 under ``settings.viser_prefix`` by relaying viser's WebSocket, so the operator opens one URL.
+The API routers live in ``server.api``; OpenAPI docs at ``/docs``.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
+import time
 from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from contextlib import asynccontextmanager, suppress
 from dataclasses import dataclass
 
-import numpy as np
 from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import RedirectResponse
+from fastapi.responses import JSONResponse, RedirectResponse
 
-from server.api_models import HealthOut, JogJointIn, JogToolIn, SetJointsIn, StateOut
-from server.session import Session, VirtualState
+from server.api import include_routers
+from server.api_models import HealthOut
+from server.console_models import ConflictError, RefusedByRule
+from server.session import Session
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
@@ -35,80 +40,90 @@ class ConsoleState:
     viser_port: int
 
 
-def _state_out(state: VirtualState) -> StateOut:
-    return StateOut.from_state(state)
+def _build_page(viser_server, session: Session) -> None:
+    """The viser scene and panels (``webui.console.build_console``)."""
+    from webui.console import build_console
+
+    build_console(viser_server, session)
 
 
-def create_app(settings: ConsoleSettings | None = None) -> FastAPI:
+def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = True) -> FastAPI:
+    """The console app; ``build_page=False`` serves the API without the 3D page's panels."""
     settings = settings or ConsoleSettings()
     cell = load_cell(settings.cell)  # fail before serving anything if the cell is broken
     holder: dict[str, ConsoleState] = {}
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        from webui.panels import DrivePanel
-        from webui.scene import CellScene
-
         session = Session(cell)
+        loop = asyncio.get_running_loop()
+        tasks: list[asyncio.Task] = []
+        client = None
+        if settings.robot_url and not settings.no_robot:
+            from server.robot_client import RobotClient
+
+            client = RobotClient(settings.robot_url)
+            session.attach_robot(client, loop)
+
+            async def connect() -> None:
+                t0 = time.monotonic()
+                await client.start(timeout=1e9)  # keeps trying; submissions queue meanwhile
+                session.note_round_trip(time.monotonic() - t0)
+                log.info("robot at %s connected", settings.robot_url)
+
+            tasks.append(asyncio.create_task(connect(), name="robot-connect"))
+        tasks.append(asyncio.create_task(session.monitor_link(), name="link-monitor"))
         viser_server = start_viser()
-        scene = CellScene(viser_server, session)
-        DrivePanel(viser_server, session, scene)
-        holder["state"] = ConsoleState(settings, session, viser_server.get_port())
-        app.state.console = holder["state"]
-        log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
         try:
+            if build_page:
+                _build_page(viser_server, session)
+            holder["state"] = ConsoleState(settings, session, viser_server.get_port())
+            app.state.console = holder["state"]
+            log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
             yield
         finally:
+            session.close()
+            for task in tasks:
+                task.cancel()
+            with suppress(Exception):
+                await asyncio.gather(*tasks, return_exceptions=True)
+            if client is not None:
+                await client.close()
             viser_server.stop()
 
     app = FastAPI(
         title="teleprog console",
-        description="Teleprogramming console: drive the virtual robot, program, preview, submit, monitor.",
-        version="0.1.0",
+        description=(
+            "Teleprogramming console: drive the virtual robot, program, preview, submit, monitor. "
+            "Name the caller with the X-Teleprog-Client header; events stream on the WebSocket /api/events."
+        ),
+        version="0.2.0",
         lifespan=lifespan,
     )
 
-    def console(request: Request) -> ConsoleState:
-        return request.app.state.console
-
     @app.exception_handler(TeleprogError)
-    async def _teleprog_error(request: Request, exc: TeleprogError):  # noqa: ANN202
-        from fastapi.responses import JSONResponse
-
-        status = 400 if isinstance(exc, InputError) else 422
-        return JSONResponse({"error": type(exc).__name__, "detail": str(exc)}, status_code=status)
+    async def _teleprog_error(request: Request, exc: TeleprogError) -> JSONResponse:
+        if isinstance(exc, InputError):
+            status = 400
+        elif isinstance(exc, ConflictError):
+            status = 409
+        else:
+            status = 422
+        body: dict[str, str] = {"error": type(exc).__name__, "detail": str(exc)}
+        if isinstance(exc, RefusedByRule):
+            body["rule"] = exc.refusal.rule.value
+        return JSONResponse(body, status_code=status)
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:
         return RedirectResponse(settings.viser_prefix + "/")
 
-    @app.get("/api/health", response_model=HealthOut)
+    @app.get("/api/health", response_model=HealthOut, tags=["session"])
     def health(request: Request) -> HealthOut:
-        c = console(request)
+        c: ConsoleState = request.app.state.console
         return HealthOut(status="ok", cell=c.session.cell.name, robot=c.session.robot.name)
 
-    @app.get("/api/state", response_model=StateOut)
-    def get_state(request: Request) -> StateOut:
-        return _state_out(console(request).session.state)
-
-    @app.put("/api/robot/joints", response_model=StateOut)
-    def set_joints(body: SetJointsIn, request: Request) -> StateOut:
-        return _state_out(console(request).session.set_q(np.radians(body.deg)))
-
-    @app.post("/api/jog/joint", response_model=StateOut)
-    def jog_joint(body: JogJointIn, request: Request) -> StateOut:
-        return _state_out(console(request).session.jog_joint(body.joint, float(np.radians(body.delta_deg))))
-
-    @app.post("/api/jog/tool", response_model=StateOut)
-    def jog_tool(body: JogToolIn, request: Request) -> StateOut:
-        scale = 1e-3 if body.motion == "translate" else np.pi / 180.0
-        return _state_out(
-            console(request).session.jog_tool(
-                frame=body.frame, constraint=body.constraint, motion=body.motion,
-                displacement=np.array(body.displacement) * scale,
-            )
-        )
-
+    include_routers(app)
     add_viser_routes(app, lambda: holder["state"].viser_port if "state" in holder else _no_scene(), prefix=settings.viser_prefix)
     return app
 

@@ -1,16 +1,25 @@
-"""Run the console under uvicorn and print the URL to open once it is listening."""
+"""Run the console under uvicorn and print the URL to open once it is listening.
+
+``teleprog up`` starts the whole product: unless told otherwise (``--robot-url``: use a running
+robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
+as child processes (``server.stack``), connects the console to the link, and stops the children
+when the console stops (Ctrl-C, SIGTERM).
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 
 import uvicorn
 
 from server.app import create_app
 from server.settings import ConsoleSettings
 from server.viser_host import uvicorn_config_kwargs
+from shared.errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -27,16 +36,72 @@ class _AnnouncingServer(uvicorn.Server):
                 return
 
 
-def run_console(args: argparse.Namespace) -> int:
-    settings = ConsoleSettings().with_overrides(port=args.port, host=args.host, cell=args.cell)
-    app = create_app(settings)
-    config = uvicorn.Config(
-        app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
+def _exit_quietly(signum: int, frame: object) -> None:
+    raise SystemExit(0)
+
+
+def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
+    get = lambda name: getattr(args, name, None)  # noqa: E731 - flags absent from older callers
+    return ConsoleSettings().with_overrides(
+        port=get("port"), host=get("host"), cell=get("cell"), delay_ms=get("delay_ms"), robot_url=get("robot_url"),
+        no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
     )
-    server = _AnnouncingServer(config)
-    server.run()
-    return 0 if server.started else 1
+
+
+def run_console(args: argparse.Namespace) -> int:
+    settings = settings_from_args(args)
+    # uvicorn shuts down gracefully on SIGINT/SIGTERM and then re-raises the signal with the
+    # handler that was in place before it; make that handler an orderly exit, so the children
+    # are stopped (the finally below) instead of the process dying on the spot.
+    signal.signal(signal.SIGTERM, _exit_quietly)
+    from shared.cells.loader import load_cell
+
+    load_cell(settings.cell)  # a broken cell fails here, before any child starts
+    children = []
+    try:
+        watch = None
+        if not settings.no_robot and not settings.robot_url:
+            from server.stack import spawn_robot_and_link
+
+            robot, link, link_url = spawn_robot_and_link(
+                cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
+            )
+            children = [robot, link]
+            settings = settings.model_copy(update={"robot_url": link_url})
+            watch = (robot, link)
+        elif settings.robot_url:
+            print(f"teleprog up: using the robot at {settings.robot_url}", flush=True)
+        else:
+            print("teleprog up: console only (no robot)", flush=True)
+        app = create_app(settings)
+        config = uvicorn.Config(
+            app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
+        )
+        server = _AnnouncingServer(config)
+        failed: list[str] = []
+        if watch is not None:
+            # the children start while the console does; a child that fails stops the console
+            def wait_children() -> None:
+                try:
+                    for child in watch:
+                        child.wait_ready(settings.child_start_timeout_s)
+                except InputError as exc:
+                    failed.append(str(exc))
+                    print(f"teleprog up: {exc}", file=sys.stderr, flush=True)
+                    server.should_exit = True
+                    return
+                robot, link = watch
+                print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
+
+            threading.Thread(target=wait_children, name="children", daemon=True).start()
+        server.run()
+        return 0 if server.started and not failed else 1
+    finally:
+        from server.stack import stop_child
+
+        for child in reversed(children):
+            stop_child(child)
 
 
 if __name__ == "__main__":
-    sys.exit(run_console(argparse.Namespace(port=None, host=None, cell=None)))
+    sys.exit(run_console(argparse.Namespace()))

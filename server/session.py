@@ -1,23 +1,100 @@
-"""The console's session state: the virtual robot the operator drives.
+"""The console's session: everything one operator console knows and does (thesis §4.2, §4.3).
 
-One ``Session`` per console process. Every mutation happens under one lock (never held across
-an ``await``) and every change is published to subscribers (the 3D scene, API watchers) after
-the lock is released. Callers on any thread (viser's pool, uvicorn's workers) may call it.
+One ``Session`` per console process holds
+
+* the virtual arm the operator drives (``state``: a ``VirtualState``) and the virtual world's
+  moved objects (what the gripper holds);
+* the program editor (``shared.program.editor.Editor``) and the automatic generator
+  (``shared.program.generator.ProgramGenerator``) fed from the arm's motion: every jog is a
+  sample; ``release()`` (the operator lets go) flushes the open segment;
+* the preview player (``shared.motion.plan_program`` from the program's start state; play,
+  pause, step, seek; collision and joint-limit warnings from ``shared.collision``);
+* the sent list, STOP/resume/skip/abort and the link to the robot (a ``RobotClient`` running on
+  the app's asyncio loop, attached with ``attach_robot``);
+* the remote arm from telemetry, the predicted path of submitted-not-done statements, the
+  collision report and control zone of the virtual arm, the regime (§4.2.1), the display mode
+  (§4.3.7), divergence detection and re-sync (§4.2.3), and one control lock.
+
+Threading: methods may be called from any thread (viser's handlers, uvicorn's worker threads,
+the asyncio loop's callbacks). State changes happen under one re-entrant lock, never held
+across an ``await`` or while listeners run; events are published after the lock is released.
+Calls that reach the robot are scheduled on the loop with ``run_coroutine_threadsafe`` and never
+waited for, so a 3 s link never blocks the page.
+
+Listeners: ``subscribe(fn(VirtualState))`` is the fast path for the 3D scene (every arm change);
+``subscribe_events(fn(SessionEvent))`` receives typed events (``server.console_models``).
+
+Errors: ``shared.errors.InputError`` for malformed input (HTTP 400), ``ConflictError`` /
+``RefusedByRule`` when the state forbids an action now (409), other ``TeleprogError`` (e.g. a joint
+limit) 422. Every mutating method takes ``client``: the id of the caller; ``None`` is the page
+served by this console. When a client holds the control lock, everybody else only observes.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import threading
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import PurePath
 
 import numpy as np
 
+from server.console_models import (
+    FINAL_SENT,
+    ArmChanged,
+    ArmView,
+    CollisionChanged,
+    CollisionView,
+    ConflictError,
+    ControlChanged,
+    ControlView,
+    DisplayMode,
+    DisplayModeChanged,
+    DivergenceChanged,
+    DivergenceView,
+    LinkChanged,
+    LinkView,
+    NotConnectedError,
+    Notice,
+    PredictedPathChanged,
+    PredictedPathView,
+    PreviewChanged,
+    PreviewView,
+    PreviewWarning,
+    ProgramChanged,
+    ProgramView,
+    RefusedByRule,
+    Regime,
+    RegimeChanged,
+    RegimeView,
+    RemoteArmChanged,
+    RemoteArmView,
+    SentChanged,
+    SentListView,
+    SentStatus,
+    SentView,
+    SessionEvent,
+    SessionSnapshot,
+    StatementView,
+)
 from shared.cells.cell import Cell
+from shared.collision import SceneModel, zone
+from shared.errors import InputError, TeleprogError
+from shared.language.formatter import format_program, format_statement
+from shared.language.parser import parse_json, parse_program, parse_statement
+from shared.language.statements import Mode, SetMode, Speed, Statement, TaskCall, Until, is_action, program_to_json
+from shared.motion import Plan, plan_program
+from shared.program.editor import KEEP, Editor, ProgramState, Refusal
+from shared.program.generator import ControlMode, GeneratorSettings, ProgramGenerator, RobotSample
 from shared.robots.jog import JogFrames, JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
+from shared.spatial import invert, matrix_to_rpy
 
 log = logging.getLogger(__name__)
+
+__all__ = ["Session", "SessionSettings", "VirtualState"]
 
 
 @dataclass(frozen=True)
@@ -32,76 +109,1179 @@ class VirtualState:
 
 
 Listener = Callable[[VirtualState], None]
+EventListener = Callable[[SessionEvent], None]
+
+
+@dataclass(frozen=True)
+class SessionSettings:
+    """Thresholds and rates of the session (SI)."""
+
+    divergence_joint: float = np.radians(1.0)
+    """rad: a joint differing more than this between virtual/predicted and reported arm diverges."""
+    divergence_tool: float = 0.002
+    """m: a tool point further than this from where it should be diverges."""
+    preview_dt: float = 0.05
+    """s: spacing of the preview samples checked for collisions and joint limits."""
+    preview_max_samples: int = 600
+    player_rate_hz: float = 30.0
+    """how often a playing preview advances and is published."""
+    remote_event_hz: float = 10.0
+    """how often telemetry is published as a ``RemoteArmChanged`` event."""
+    link_poll_s: float = 0.25
+    predicted_points: int = 60
+    gripper_closed_below: float = 0.03
+    """m: a reported gripper opening below this counts as holding."""
+    generator: GeneratorSettings = field(default_factory=GeneratorSettings)
 
 
 @dataclass
-class _Listeners:
-    items: list[Listener] = field(default_factory=list)
+class _Sent:
+    id: int
+    statement: Statement
+    status: SentStatus
+    submitted_at: float
+    comm: int  # console-local communication id
+    number: int | None = None
+    reason: str | None = None
+    answered_at: float | None = None
+    started_at: float | None = None
+    finished_at: float | None = None
+
+    def view(self) -> SentView:
+        run = self.finished_at - self.started_at if self.finished_at is not None and self.started_at is not None else None
+        return SentView(
+            id=self.id, number=self.number, text=format_statement(self.statement), statement=self.statement,
+            status=self.status, reason=self.reason, submitted_at=self.submitted_at, answered_at=self.answered_at,
+            started_at=self.started_at, finished_at=self.finished_at, run_s=run,
+        )
+
+
+@dataclass
+class _Preview:
+    start: int
+    stop: int
+    plan: Plan
+    t0: float  # program time where the range starts
+    duration: float
+    warnings: list[PreviewWarning]
+    refusal: str | None
+    t: float = 0.0
+    playing: bool = False
+    rate: float = 1.0
+
+
+def _m(a: np.ndarray) -> list[list[float]]:
+    return np.asarray(a, dtype=float).tolist()
 
 
 class Session:
-    def __init__(self, cell: Cell) -> None:
+    """One operator console's state and actions (see the module docstring)."""
+
+    def __init__(
+        self,
+        cell: Cell,
+        settings: SessionSettings | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        scene: SceneModel | None = None,
+    ) -> None:
+        """``scene``: the cell's collision model when the caller already built it (it is immutable
+        and takes seconds to build); ``clock``: monotonic seconds, for the generator's samples."""
         self.cell = cell
         self.robot = cell.robot
+        self.settings = settings or SessionSettings()
         self.frames = JogFrames(cell.world_T_base, cell.frame("work"), cell.flange_T_tcp)
-        self._lock = threading.Lock()
-        self._listeners = _Listeners()
+        self._clock = clock
+        self._lock = threading.RLock()
+        self._listeners: list[Listener] = []
+        self._event_listeners: list[EventListener] = []
         q0 = cell.q_home.copy()
         self._state = VirtualState(q0, world_T_tcp(self.robot, q0, self.frames))
+        self._scene = scene if scene is not None else SceneModel.from_cell(cell)
+        self._scene_data = self._scene.new_data()
+        self._tool_body = f"link{self.robot.dof}"
+        # virtual world: held object and moved objects (world_T_object)
+        self._held: str | None = None
+        self._tcp_T_held: np.ndarray | None = None
+        self._object_poses: dict[str, np.ndarray] = {}
+        # program
+        self._editor = Editor()
+        self._auto = False
+        self._generator = ProgramGenerator(self.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
+        self._gen_mode: ControlMode | None = None
+        self._start_q = q0.copy()
+        self._start_source: str = "model"
+        self._start_unknown = False  # the predicted end lies after a task whose end only the robot knows
+        self._confirmed: tuple[int, int, tuple] | None = None
+        # preview
+        self._preview: _Preview | None = None
+        self._player: threading.Thread | None = None
+        self._player_wake = threading.Event()
+        self._closing = False
+        # regime, display, lock
+        self._override: Regime | None = None
+        self._display = DisplayMode.TELEPROGRAMMING
+        self._display_before_preview = DisplayMode.TELEPROGRAMMING
+        self._holder: str | None = None
+        self._holder_since: float | None = None
+        # robot link
+        self._client = None  # server.robot_client.RobotClient
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._url: str | None = None
+        self._sent: list[_Sent] = []
+        self._by_number: dict[int, _Sent] = {}
+        self._early_reports: dict[int, list] = {}
+        self._comm_counter = 0
+        self._robot_mode = Mode.POSITION
+        self._rtts: list[float] = []
+        self._recovery_pending: dict[int, str] = {}
+        self._recovery_counter = 0
+        self._telemetry = None
+        self._telemetry_at: float | None = None
+        self._last_remote_emit = 0.0
+        self._remote_held: str | None = None
+        self._remote_tcp_T_held: np.ndarray | None = None
+        self._remote_poses: dict[str, np.ndarray] = {}  # where released objects were left
+        self._remote_data = self.robot.new_data()
+        self._predicted = PredictedPathView()
+        self._divergence = DivergenceView(threshold_joint=self.settings.divergence_joint, threshold_tool=self.settings.divergence_tool)
+        self._last_link: LinkView | None = None
+        self._collision = self._compute_collision(self._state)
+        self._zone = self._collision.zone
 
-    # -- reading ----------------------------------------------------------------------------
+    # =========================================================================== reading
     @property
     def state(self) -> VirtualState:
+        """The virtual arm now."""
         with self._lock:
             return self._state
 
-    def subscribe(self, listener: Listener) -> None:
+    @property
+    def editor_state(self) -> ProgramState:
         with self._lock:
-            self._listeners.items.append(listener)
+            return self._editor.state
 
-    # -- writing ----------------------------------------------------------------------------
-    def _apply(self, step: Callable[[np.ndarray], JogResult | np.ndarray]) -> VirtualState:
+    @property
+    def display_mode(self) -> DisplayMode:
+        return self._display
+
+    def subscribe(self, listener: Listener) -> None:
+        """Call ``listener(VirtualState)`` after every change of the virtual arm (fast path)."""
+        with self._lock:
+            self._listeners.append(listener)
+
+    def subscribe_events(self, listener: EventListener) -> Callable[[], None]:
+        """Call ``listener(event)`` for every ``SessionEvent``; returns a function that unsubscribes."""
+        with self._lock:
+            self._event_listeners.append(listener)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if listener in self._event_listeners:
+                    self._event_listeners.remove(listener)
+
+        return unsubscribe
+
+    def snapshot(self) -> SessionSnapshot:
+        """Every view at once."""
+        with self._lock:
+            return SessionSnapshot(
+                cell=self.cell.name, robot=self.robot.name, dof=self.robot.dof, arm=self.arm_view(),
+                program=self.program_view(), preview=self.preview_view(), sent=self.sent_view(),
+                link=self.link_view(), remote=self.remote_view(), predicted=self._predicted,
+                collision=self._collision, regime=self.regime_view(), display=self._display,
+                divergence=self._divergence, control=self.control_view(),
+            )
+
+    def arm_view(self) -> ArmView:
+        with self._lock:
+            s = self._state
+            jog = s.last_jog
+            return ArmView(
+                q=s.q.tolist(), q_deg=np.degrees(s.q).tolist(), world_T_tcp=_m(s.world_T_tcp),
+                tool_xyz_mm=(s.world_T_tcp[:3, 3] * 1e3).tolist(),
+                tool_rpy_deg=np.degrees(matrix_to_rpy(s.world_T_tcp[:3, :3])).tolist(),
+                blocked=jog.blocked if jog else None, message=jog.message if jog else "", version=s.version,
+                held=self._held, object_poses={k: _m(v) for k, v in self._object_poses.items()},
+            )
+
+    def program_view(self) -> ProgramView:
+        with self._lock:
+            st = self._editor.state
+            entries = [
+                StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s) for i, s in enumerate(st.statements)
+            ]
+            entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
+            return ProgramView(
+                entries=entries, selected=st.selected_index, empty_index=st.empty_index, preview=st.preview,
+                can_undo=self._editor.can_undo, can_redo=self._editor.can_redo, undo_label=self._editor.undo_label,
+                redo_label=self._editor.redo_label, auto_generate=self._auto, start_q=self._start_q.tolist(),
+                start_source=self._start_source, confirmed=self._confirmed_range(),
+            )
+
+    def preview_view(self) -> PreviewView:
+        with self._lock:
+            p = self._preview
+            if p is None:
+                return PreviewView()
+            q = self._preview_q(p)
+            ts = p.plan.start_times
+            current = int(np.searchsorted(ts, p.t0 + p.t, side="right") - 1) if len(ts) else None
+            if current is not None:
+                current = min(max(current, p.start), p.stop - 1)
+            report = self._scene.check(q, object_poses=self._object_poses or None, distances="none", skip=self._held_skip(), data=self._scene_data)
+            tris = {b: report.interfering_triangles(b).tolist() for b in {n for pr in report.pairs for n in (pr.a, pr.b)}}
+            return PreviewView(
+                active=True, start=p.start, stop=p.stop, playing=p.playing, t=p.t, duration=p.duration, rate=p.rate,
+                current=current, q=q.tolist(), warnings=list(p.warnings), colliding_now=report.colliding, triangles=tris,
+                refusal=p.refusal,
+            )
+
+    def sent_view(self) -> SentListView:
+        with self._lock:
+            return SentListView(items=[s.view() for s in self._sent], pending=sum(s.status not in FINAL_SENT for s in self._sent))
+
+    def link_view(self) -> LinkView:
+        with self._lock:
+            client = self._client
+            now = self._clock()
+            rtt = float(np.median(self._rtts[-5:])) if self._rtts else None
+            delay = rtt / 2 if rtt is not None else None
+            ago = now - self._telemetry_at if self._telemetry_at is not None else None
+            frame = self._telemetry
+            return LinkView(
+                configured=self._url is not None, url=self._url,
+                connected=bool(client is not None and client.connected.is_set()),
+                delay_s=delay, round_trip_s=rtt, telemetry_received_ago_s=ago,
+                telemetry_age_s=None if ago is None else ago + (delay or 0.0),
+                reconnects=client.reconnects if client is not None else 0,
+                robot_state=frame.state.name.lower() if frame is not None else None,
+                recovery_pending=list(self._recovery_pending.values()),
+            )
+
+    def remote_view(self) -> RemoteArmView | None:
+        """The remote arm from the newest telemetry frame, or ``None`` before the first one."""
+        with self._lock:
+            frame = self._telemetry
+            if frame is None:
+                return None
+            q = np.array(frame.q, dtype=float)
+            link = self.link_view()
+            world_T_tcp_remote = self._remote_tcp(q)
+            poses = {k: v for k, v in self._remote_poses.items()}
+            if self._remote_held is not None and self._remote_tcp_T_held is not None:
+                poses[self._remote_held] = world_T_tcp_remote @ self._remote_tcp_T_held
+            return RemoteArmView(
+                q=q.tolist(), world_T_tcp=_m(world_T_tcp_remote), age_s=link.telemetry_age_s,
+                state=frame.state.name.lower(), statement=frame.statement, gripper=frame.gripper,
+                force_n=list(frame.wrench[:3]), held=self._remote_held, object_poses={k: _m(v) for k, v in poses.items()},
+            )
+
+    def predicted_view(self) -> PredictedPathView:
+        with self._lock:
+            return self._predicted
+
+    def collision_view(self) -> CollisionView:
+        with self._lock:
+            return self._collision
+
+    def regime_view(self) -> RegimeView:
+        with self._lock:
+            return RegimeView(regime=self._override or self._zone, zone=self._zone, override=self._override)
+
+    @property
+    def regime(self) -> Regime:
+        with self._lock:
+            return self._override or self._zone
+
+    def divergence_view(self) -> DivergenceView:
+        with self._lock:
+            return self._divergence
+
+    def control_view(self) -> ControlView:
+        with self._lock:
+            return ControlView(holder=self._holder, since=self._holder_since)
+
+    # =========================================================================== control lock
+    def request_control(self, client: str) -> ControlView:
+        """Take the control lock for ``client`` (a non-empty id). Refused while another holds it."""
+        if not client:
+            raise InputError("a client id is needed to take control (header X-Teleprog-Client)")
+        with self._lock:
+            if self._holder not in (None, client):
+                raise ConflictError(f"control is held by {self._holder!r}; ask it to release control first")
+            if self._holder is None:
+                self._holder, self._holder_since = client, time.time()
+            view = self.control_view()
+        self._emit([ControlChanged(control=view)])
+        return view
+
+    def release_control(self, client: str) -> ControlView:
+        """Give the lock back; releasing a lock one does not hold is refused."""
+        with self._lock:
+            if self._holder is None:
+                return self.control_view()
+            if self._holder != client:
+                raise ConflictError(f"control is held by {self._holder!r}, not by {client!r}")
+            self._holder = self._holder_since = None
+            view = self.control_view()
+        self._emit([ControlChanged(control=view)])
+        return view
+
+    def _check_control(self, client: str | None) -> None:
+        if self._holder is not None and self._holder != client:
+            who = "this page" if client is None else repr(client)
+            raise ConflictError(f"control is held by {self._holder!r}: {who} can only observe")
+
+    # =========================================================================== driving
+    def set_q(self, q: np.ndarray, *, client: str | None = None) -> VirtualState:
+        """Put the virtual robot at ``q`` (rad; checked against the joint ranges)."""
+        q = self.robot.as_q(q)
+        self.robot.check_limits(q)
+        return self._apply(lambda _: q, ControlMode.JOINT, client)
+
+    def jog_joint(self, joint: int, delta: float, *, client: str | None = None) -> VirtualState:
+        """Turn joint ``joint`` (1-based) by ``delta`` rad about its own z axis, stopping at its limit."""
+        return self._apply(lambda q: jog_joint(self.robot, q, joint, delta), ControlMode.JOINT, client)
+
+    def set_joint(self, joint: int, value: float, *, client: str | None = None) -> VirtualState:
+        """Turn joint ``joint`` (1-based) to ``value`` rad, stopping at its limit."""
+        if not 1 <= joint <= self.robot.dof:
+            raise InputError(f"joint {joint} does not exist: the robot has joints 1..{self.robot.dof}")
+        return self._apply(lambda q: jog_joint(self.robot, q, joint, value - q[joint - 1]), ControlMode.JOINT, client)
+
+    def jog_tool(self, *, frame: str, constraint: str, motion: str, displacement: np.ndarray, client: str | None = None) -> VirtualState:
+        """Move the tool point by ``displacement`` (m, or a rotation vector in rad) in ``frame``
+        along the axis or plane ``constraint``."""
+        return self._apply(
+            lambda q: jog_tool(self.robot, q, frames=self.frames, frame=frame, constraint=constraint, motion=motion, displacement=displacement),
+            ControlMode.TOOL, client,
+        )
+
+    def jog_tool_to(self, world_T_goal: np.ndarray, *, frame: str, constraint: str, motion: str, client: str | None = None) -> VirtualState:
+        """Move the tool point toward ``world_T_goal`` (the gizmo's pose) under the constraint."""
+        return self._apply(
+            lambda q: jog_tool_to(self.robot, q, world_T_goal, frames=self.frames, frame=frame, constraint=constraint, motion=motion),
+            ControlMode.TOOL, client,
+        )
+
+    def release(self, *, client: str | None = None) -> ProgramView:
+        """The operator let go of the gizmo or slider: close the open generated segment."""
+        with self._lock:
+            self._check_control(client)
+            statements = self._generator.flush() if self._auto else []
+            self._gen_mode = None  # the next stroke starts with the state it starts from
+        self._take_generated(statements)
+        return self.program_view()
+
+    def _apply(self, step: Callable[[np.ndarray], JogResult | np.ndarray], mode: ControlMode, client: str | None) -> VirtualState:
         """Compute the next joint vector from the current one and publish it, atomically: two
         callers on different threads never lose each other's step."""
         with self._lock:
+            self._check_control(client)
+            if self._preview is not None:
+                p = self._preview
+                raise ConflictError(
+                    f"cannot drive the arm while statements {p.start + 1}..{p.stop} are being previewed; end the preview first"
+                )
             out = step(self._state.q)
             result = out if isinstance(out, JogResult) else None
             q = out.q if isinstance(out, JogResult) else out
-            self._state = VirtualState(
-                q.copy(), world_T_tcp(self.robot, q, self.frames), result, self._state.version + 1
-            )
-            state, listeners = self._state, list(self._listeners.items)
+            generated: list[Statement] = []
+            if self._auto:
+                now = self._clock()
+                if self._gen_mode is not None and self._gen_mode is not mode:
+                    generated += self._generator.flush()
+                if self._gen_mode is not mode:
+                    # a fresh stroke: the state before it is the stroke's first sample
+                    generated += self._generator.feed(self._sample(now - 1e-3, self._state.q, self._state.world_T_tcp, mode))
+                    self._gen_mode = mode
+            self._state = VirtualState(q.copy(), world_T_tcp(self.robot, q, self.frames), result, self._state.version + 1)
+            self._move_held()
+            if self._auto:
+                generated += self._generator.feed(self._sample(self._clock(), q, self._state.world_T_tcp, mode))
+            state, listeners = self._state, list(self._listeners)
+            events = self._after_arm_change()
         for listener in listeners:
             try:
                 listener(state)
             except Exception:  # a broken view must not break the session
                 log.exception("session listener failed")
+        self._emit(events)
+        self._take_generated(generated)
         return state
 
-    def set_q(self, q: np.ndarray) -> VirtualState:
-        """Put the virtual robot at ``q`` (checked against the joint ranges)."""
-        q = self.robot.as_q(q)
-        self.robot.check_limits(q)
-        return self._apply(lambda _: q)
+    def _sample(self, t: float, q: np.ndarray, world_T: np.ndarray, mode: ControlMode) -> RobotSample:
+        return RobotSample(t=t, q=q.copy(), mode=mode, world_T_tool=world_T)
 
-    def jog_joint(self, joint: int, delta: float) -> VirtualState:
-        return self._apply(lambda q: jog_joint(self.robot, q, joint, delta))
+    def _after_arm_change(self) -> list[SessionEvent]:
+        """Collision report, zone and regime of the new arm state (under the lock)."""
+        events: list[SessionEvent] = [ArmChanged(arm=self.arm_view())]
+        self._collision = self._compute_collision(self._state)
+        events.append(CollisionChanged(collision=self._collision))
+        if self._collision.zone != self._zone:
+            self._zone = self._collision.zone
+            events.append(RegimeChanged(regime=self.regime_view()))
+        return events
 
-    def set_joint(self, joint: int, value: float) -> VirtualState:
-        """Turn joint ``joint`` (1-based) to ``value`` rad, stopping at its limit."""
-        return self._apply(lambda q: jog_joint(self.robot, q, joint, value - q[joint - 1] if 1 <= joint <= len(q) else 0.0))
+    def _held_skip(self) -> list[tuple[str, str]]:
+        return [(self._held, self._tool_body)] if self._held else []
 
-    def jog_tool(self, *, frame: str, constraint: str, motion: str, displacement: np.ndarray) -> VirtualState:
-        return self._apply(
-            lambda q: jog_tool(
-                self.robot, q, frames=self.frames, frame=frame, constraint=constraint,
-                motion=motion, displacement=displacement,
-            )
+    def _compute_collision(self, state: VirtualState) -> CollisionView:
+        poses = self._object_poses or None
+        tools = [self._tool_body, *([self._held] if self._held else [])]
+        report = self._scene.check(state.q, object_poses=poses, distances=tools, skip=self._held_skip(), data=self._scene_data)
+        zs = zone(self._scene, self.cell, state.q, held=[self._held] if self._held else (), object_poses=poses, report=report)
+        bodies = {n for pr in report.pairs for n in (pr.a, pr.b)}
+        nearest = report.nearest
+        jog = state.last_jog
+        return CollisionView(
+            colliding=report.colliding, pairs=[(p.a, p.b) for p in report.pairs],
+            triangles={b: report.interfering_triangles(b).tolist() for b in bodies},
+            min_distance=report.min_distance, nearest=(nearest.a, nearest.b) if nearest else None,
+            zone=Regime(zs.zone), zone_object=zs.object, zone_distance=None if not np.isfinite(zs.distance) else zs.distance,
+            joint_limit=jog.message if jog is not None and jog.blocked == "joint_limit" else None,
         )
 
-    def jog_tool_to(self, world_T_goal: np.ndarray, *, frame: str, constraint: str, motion: str) -> VirtualState:
-        return self._apply(
-            lambda q: jog_tool_to(
-                self.robot, q, world_T_goal, frames=self.frames, frame=frame, constraint=constraint, motion=motion
+    def _move_held(self) -> None:
+        if self._held is not None and self._tcp_T_held is not None:
+            self._object_poses[self._held] = self._state.world_T_tcp @ self._tcp_T_held
+
+    def _world_T_object(self, name: str) -> np.ndarray:
+        if name in self._object_poses:
+            return self._object_poses[name]
+        return np.asarray(self.cell.object(name).world_T_object, dtype=float)
+
+    # =========================================================================== program
+    def set_auto_generate(self, on: bool, *, client: str | None = None) -> ProgramView:
+        """Switch automatic generation; switching on anchors the generator at the arm's state."""
+        with self._lock:
+            self._check_control(client)
+            flushed = self._generator.flush() if self._auto and not on else []
+            self._auto = bool(on)
+            self._generator.reset()
+            self._gen_mode = None
+        self._take_generated(flushed)
+        view = self.program_view()
+        self._emit([ProgramChanged(program=view)])
+        return view
+
+    def select(self, index: int, *, client: str | None = None) -> ProgramView:
+        """Select statement ``index`` (0-based; ``empty_index`` is the trailing empty one). Allowed while previewing."""
+        return self._edit(lambda e: e.select(index), client)
+
+    def insert(self, statement: Statement | str, *, client: str | None = None) -> ProgramView:
+        """Insert a statement (a model, or its text form) before the selection."""
+        st = self._statement(statement)
+        return self._edit(lambda e: e.insert(st), client)
+
+    def delete(self, *, client: str | None = None) -> ProgramView:
+        """Delete the selected statement."""
+        return self._edit(lambda e: e.delete(), client)
+
+    def modify(self, statement: Statement | str, *, client: str | None = None) -> ProgramView:
+        """Replace the selected statement by one of the same kind (§4.3.6 rules)."""
+        st = self._statement(statement)
+        return self._edit(lambda e: e.modify(st), client)
+
+    def modify_conditions(self, *, speed: Speed | None | object = KEEP, until: Until | None | object = KEEP, client: str | None = None) -> ProgramView:
+        """Set (a value), clear (``None``) or keep (``KEEP``) the WITH speed / UNTIL of the selected action."""
+        return self._edit(lambda e: e.modify_conditions(speed, until), client)  # type: ignore[arg-type]
+
+    def undo(self, *, client: str | None = None) -> ProgramView:
+        return self._edit(lambda e: e.undo(), client)
+
+    def redo(self, *, client: str | None = None) -> ProgramView:
+        return self._edit(lambda e: e.redo(), client)
+
+    def load_program(self, text: str, filename: str = "program.tp", *, client: str | None = None) -> ProgramView:
+        """Replace the program by a program file's content (text form, or JSON when the name ends
+        in .json). A broken file raises ``InputError`` naming file, line and column; the current
+        program is then kept."""
+        name = PurePath(filename).name or "program"
+        parsed = parse_json(text, name) if name.lower().endswith(".json") else parse_program(text, name)
+        if not parsed.ok:
+            lines = parsed.error_lines()
+            more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
+            raise InputError(lines[0] + more)
+        state = ProgramState.of(parsed.statements)  # InputError when the rules are broken
+        with self._lock:
+            self._check_control(client)
+            self._check_not_previewing("load a program")
+            self._editor = Editor(state)
+            self._confirmed = None
+        view = self.program_view()
+        self._emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
+        return view
+
+    def save_program(self, fmt: str = "text") -> str:
+        """The program's file content: ``text`` (the language) or ``json``."""
+        with self._lock:
+            statements = list(self._editor.state.statements)
+        if fmt == "json":
+            import json
+
+            return json.dumps(program_to_json(statements), indent=2) + "\n"
+        if fmt == "text":
+            return format_program(statements)
+        raise InputError(f"unknown program format {fmt!r}; valid: text, json")
+
+    def _statement(self, statement: Statement | str) -> Statement:
+        if isinstance(statement, str):
+            return parse_statement(statement)
+        return statement
+
+    def _check_not_previewing(self, what: str) -> None:
+        if self._preview is not None:
+            p = self._preview
+            raise ConflictError(f"cannot {what} while statements {p.start + 1}..{p.stop} are being previewed; only selection is allowed")
+
+    def _edit(self, op: Callable[[Editor], object], client: str | None) -> ProgramView:
+        with self._lock:
+            self._check_control(client)
+            result = op(self._editor)
+            if isinstance(result, Refusal):
+                refusal = result
+            else:
+                refusal = None
+            view = self.program_view()
+        if refusal is not None:
+            self._emit([Notice(level="warning", message=refusal.message, rule=refusal.rule.value)])
+            raise RefusedByRule(refusal)
+        self._emit([ProgramChanged(program=view)])
+        return view
+
+    def _take_generated(self, statements: list[Statement]) -> None:
+        """Put generated statements at the program's end; in the free regime stream them."""
+        if not statements:
+            return
+        notices: list[SessionEvent] = []
+        with self._lock:
+            editor = self._editor
+            keep = editor.state.selected_index
+            at_end = keep == editor.state.empty_index
+            inserted = 0
+            for st in statements:
+                if editor.state.previewing:
+                    break
+                editor.select_empty()
+                result = editor.insert(st)
+                if isinstance(result, Refusal):
+                    notices.append(Notice(level="warning", message=f"generated {st.kind} not added: {result.message}", rule=result.rule.value))
+                    break
+                inserted += 1
+            if not at_end and keep < editor.state.empty_index:
+                editor.select(keep)
+            stream = inserted and self.regime is Regime.FREE and self._client is not None
+        view = self.program_view()
+        self._emit([ProgramChanged(program=view), *notices])
+        if stream:
+            try:
+                self.submit(0, self.editor_state.empty_index, client=self._holder)
+            except TeleprogError as exc:
+                self._emit([Notice(level="warning", message=f"streaming refused: {exc}")])
+
+    # =========================================================================== preview
+    def begin_preview(self, start: int, stop: int, *, client: str | None = None) -> PreviewView:
+        """Plan ``statements[start:stop]`` from the program's start state and stand at its start.
+
+        The statements before ``start`` are planned too (they set where the range starts). The
+        samples are checked for collisions and joint limits now; warnings are in the view."""
+        with self._lock:
+            self._check_control(client)
+            statements = self._editor.state.statements
+            result = self._editor.begin_preview(start, stop)
+            if isinstance(result, Refusal):
+                refusal = result
+            else:
+                refusal = None
+                try:
+                    self._preview = self._plan_preview(statements, start, stop)
+                except TeleprogError:
+                    self._editor.end_preview()
+                    raise
+                self._display_before_preview = self._display
+                self._display = DisplayMode.TASK_PREVIEW
+        if refusal is not None:
+            raise RefusedByRule(refusal)
+        view = self.preview_view()
+        self._emit([PreviewChanged(preview=view), ProgramChanged(program=self.program_view()), DisplayModeChanged(display=self._display)])
+        return view
+
+    def _plan_preview(self, statements: Sequence[Statement], start: int, stop: int) -> _Preview:
+        plan = plan_program(list(statements[:stop]), self.robot, self.cell, start_q=self._start_q)
+        warnings: list[PreviewWarning] = []
+        refusal = None
+        if self._start_unknown:
+            warnings.append(PreviewWarning(
+                t=0.0, index=start, kind="plan",
+                message="the robot's state after the statements sent is not known here (a task, a stop or a failure): "
+                        "the preview starts from the last prediction; re-sync from telemetry first",
+            ))
+        if plan.refusal is not None:
+            refusal = str(plan.refusal)
+            idx = plan.refusal.index if plan.refusal.index is not None else len(plan.segments)
+            warnings.append(PreviewWarning(t=0.0, index=idx, kind="plan", message=refusal))
+        n = len(plan.segments)
+        if start < n:
+            t0 = float(plan.start_times[start])
+        else:
+            t0 = plan.duration
+        t1 = plan.duration
+        duration = max(0.0, t1 - t0)
+        if duration > 0:
+            dt = max(self.settings.preview_dt, duration / self.settings.preview_max_samples)
+            ts = np.append(np.arange(0.0, duration, dt), duration)
+            samples = plan.sample(t0 + ts)
+            seen: set[tuple] = set()
+            data = self._scene.new_data()
+            for t, q in zip(ts, samples.q):
+                idx = int(np.searchsorted(plan.start_times, t0 + t, side="right") - 1)
+                idx = min(max(idx, start), stop - 1)
+                if not self.robot.within_limits(q):
+                    key = ("joint_limit", idx)
+                    if key not in seen:
+                        seen.add(key)
+                        bad = [i + 1 for i in range(self.robot.dof) if not (self.robot.lower[i] - 1e-6 <= q[i] <= self.robot.upper[i] + 1e-6)]
+                        warnings.append(PreviewWarning(t=float(t), index=idx, kind="joint_limit",
+                                                       message=f"statement {idx + 1}: joint {bad[0] if bad else '?'} leaves its range at t={t:.2f} s"))
+                report = self._scene.check(q, object_poses=self._object_poses or None, distances="none", triangles=False, data=data)
+                for pair in report.pairs:
+                    key = ("collision", idx, pair.a, pair.b)
+                    if key not in seen:
+                        seen.add(key)
+                        warnings.append(PreviewWarning(t=float(t), index=idx, kind="collision", bodies=(pair.a, pair.b),
+                                                       message=f"statement {idx + 1}: {pair.a} touches {pair.b} at t={t:.2f} s"))
+        return _Preview(start, stop, plan, t0, duration, warnings, refusal)
+
+    def _preview_q(self, p: _Preview) -> np.ndarray:
+        return p.plan.sample(p.t0 + p.t).q[0]
+
+    def play(self, rate: float = 1.0, *, client: str | None = None) -> PreviewView:
+        """Play the preview from its current time at ``rate`` x real time."""
+        if not (0 < rate <= 100):
+            raise InputError(f"preview rate must be in (0, 100], got {rate}")
+        with self._lock:
+            self._check_control(client)
+            p = self._need_preview()
+            if p.t >= p.duration:
+                p.t = 0.0
+            p.playing, p.rate = True, float(rate)
+            self._ensure_player()
+        self._player_wake.set()
+        return self._publish_preview()
+
+    def pause(self, *, client: str | None = None) -> PreviewView:
+        with self._lock:
+            self._check_control(client)
+            self._need_preview().playing = False
+        return self._publish_preview()
+
+    def seek(self, t: float, *, client: str | None = None) -> PreviewView:
+        """Stand at preview time ``t`` (s from the range's start, clipped into the range)."""
+        with self._lock:
+            self._check_control(client)
+            p = self._need_preview()
+            p.t = float(min(max(t, 0.0), p.duration))
+            self._maybe_confirm(p)
+        return self._publish_preview()
+
+    def step(self, statements: int = 1, *, client: str | None = None) -> PreviewView:
+        """Jump to the end of the current statement (``statements`` > 0) or to the start of the
+        previous one (< 0)."""
+        with self._lock:
+            self._check_control(client)
+            p = self._need_preview()
+            p.playing = False
+            ends = [float(p.plan.start_times[i] + p.plan.segments[i].duration - p.t0) for i in range(p.start, min(p.stop, len(p.plan.segments)))]
+            starts = [float(p.plan.start_times[i] - p.t0) for i in range(p.start, min(p.stop, len(p.plan.segments)))]
+            eps = 1e-9
+            if statements > 0:
+                later = [e for e in ends if e > p.t + eps] or [p.duration]
+                p.t = later[min(statements, len(later)) - 1]
+            elif statements < 0:
+                earlier = [s for s in starts if s < p.t - eps] or [0.0]
+                p.t = earlier[max(len(earlier) + statements, 0)]
+            p.t = min(max(p.t, 0.0), p.duration)
+            self._maybe_confirm(p)
+        return self._publish_preview()
+
+    def end_preview(self, *, client: str | None = None) -> PreviewView:
+        """Stop previewing; the arm is drawn where the operator left it again."""
+        with self._lock:
+            self._check_control(client)
+            self._need_preview()
+            self._preview = None
+            self._editor.end_preview()
+            self._display = self._display_before_preview
+        view = PreviewView()
+        self._emit([PreviewChanged(preview=view), ProgramChanged(program=self.program_view()), DisplayModeChanged(display=self._display)])
+        return view
+
+    def _need_preview(self) -> _Preview:
+        if self._preview is None:
+            raise ConflictError("no preview is running; begin one with a range of statements")
+        return self._preview
+
+    def _maybe_confirm(self, p: _Preview) -> None:
+        if p.t >= p.duration - 1e-9 and not p.warnings:
+            st = self._editor.state.statements
+            self._confirmed = (p.start, p.stop, tuple(st[p.start : p.stop]))
+
+    def _confirmed_range(self) -> tuple[int, int] | None:
+        c = self._confirmed
+        if c is None:
+            return None
+        start, stop, statements = c
+        current = self._editor.state.statements
+        return (start, stop) if tuple(current[start:stop]) == statements else None
+
+    def _publish_preview(self) -> PreviewView:
+        view = self.preview_view()
+        events: list[SessionEvent] = [PreviewChanged(preview=view)]
+        if view.active and not view.playing and view.t >= view.duration:
+            events.append(ProgramChanged(program=self.program_view()))
+        self._emit(events)
+        return view
+
+    def _ensure_player(self) -> None:
+        if self._player is None or not self._player.is_alive():
+            self._player = threading.Thread(target=self._player_loop, name="preview-player", daemon=True)
+            self._player.start()
+
+    def _player_loop(self) -> None:
+        period = 1.0 / self.settings.player_rate_hz
+        last = self._clock()
+        while not self._closing:
+            with self._lock:
+                p = self._preview
+                playing = p is not None and p.playing
+            if not playing:
+                self._player_wake.wait(0.5)
+                self._player_wake.clear()
+                last = self._clock()
+                continue
+            time.sleep(period)
+            now = self._clock()
+            with self._lock:
+                p = self._preview
+                if p is None or not p.playing:
+                    continue
+                p.t = min(p.t + (now - last) * p.rate, p.duration)
+                if p.t >= p.duration:
+                    p.playing = False
+                    self._maybe_confirm(p)
+            last = now
+            try:
+                self._publish_preview()
+            except Exception:  # noqa: BLE001 - the player must survive a broken listener
+                log.exception("preview publish failed")
+
+    # =========================================================================== regime, display
+    def set_regime_override(self, regime: Regime | None, *, client: str | None = None) -> RegimeView:
+        """Force a regime (``None``: follow the zone again)."""
+        with self._lock:
+            self._check_control(client)
+            self._override = None if regime is None else Regime(regime)
+            view = self.regime_view()
+        self._emit([RegimeChanged(regime=view)])
+        return view
+
+    def set_display_mode(self, mode: DisplayMode, *, client: str | None = None) -> DisplayMode:
+        with self._lock:
+            self._check_control(client)
+            mode = DisplayMode(mode)
+            if self._preview is not None and mode is not DisplayMode.TASK_PREVIEW:
+                raise ConflictError("a preview is running: end it to leave the task preview display")
+            self._display = mode
+        self._emit([DisplayModeChanged(display=mode)])
+        return mode
+
+    # =========================================================================== robot link
+    def attach_robot(self, client, loop: asyncio.AbstractEventLoop) -> None:
+        """Use ``client`` (a started or starting ``RobotClient``) on ``loop`` for submissions,
+        recovery commands and telemetry. Called once by the app's lifespan."""
+        with self._lock:
+            self._client, self._loop, self._url = client, loop, client.url
+        client.on_report(self.on_report)
+        client.on_telemetry(self.on_telemetry)
+
+    def note_round_trip(self, seconds: float) -> None:
+        """Record a measured round trip (connection handshake, submit answer, recovery ack)."""
+        with self._lock:
+            self._rtts.append(float(seconds))
+            del self._rtts[:-20]
+
+    def submit(self, start: int, stop: int, *, client: str | None = None) -> SentListView:
+        """Send ``statements[start:stop]`` (``start`` must be 0) to the robot.
+
+        The statements leave the program at once and appear in the sent list as ``sending``;
+        the robot's answer numbers them and its reports move them through their statuses. The
+        regime applies: quasi needs the range previewed to its end without warnings (confirm);
+        operation sends one statement at a time, each action with an UNTIL, in force mode."""
+        with self._lock:
+            self._check_control(client)
+            if self._client is None or self._loop is None:
+                raise NotConnectedError("no robot is configured for this console (started with --no-robot)")
+            self._check_not_previewing("submit statements")
+            state = self._editor.state
+            check = state.check_submit(start, stop)
+            if check is not None:
+                raise RefusedByRule(check)
+            statements = list(state.statements[start:stop])
+            regime = self.regime
+            if regime is Regime.QUASI:
+                c = self._confirmed_range()
+                if c is None or c[0] != 0 or c[1] < stop:
+                    raise ConflictError(
+                        f"quasi-operation regime: preview statements 1..{stop} to their end without warnings before sending"
+                    )
+            prefix: list[Statement] = []
+            if regime is Regime.OPERATION:
+                if stop - start != 1:
+                    raise ConflictError("operation regime: send one statement at a time")
+                if any(s.status not in FINAL_SENT for s in self._sent):
+                    raise ConflictError("operation regime: wait until the previous statement is final")
+                st = statements[0]
+                if is_action(st) and st.until is None:
+                    raise ConflictError(f"operation regime: the {st.kind} action needs an UNTIL condition (force or contact)")
+                if self._robot_mode is not Mode.FORCE:
+                    prefix.append(SetMode(mode=Mode.FORCE))
+            elif self._robot_mode is Mode.FORCE and not any(getattr(s, "kind", "") == "MODE" for s in statements[:1]):
+                prefix.append(SetMode(mode=Mode.POSITION))
+            result = self._editor.submit(start, stop)
+            if isinstance(result, Refusal):
+                raise RefusedByRule(result)
+            outgoing = prefix + statements
+            for st in outgoing:
+                if st.kind == "MODE":
+                    self._robot_mode = st.mode
+            self._comm_counter += 1
+            comm = self._comm_counter
+            now = time.time()
+            for st in outgoing:
+                self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, comm))
+            held_before = self._held
+            self._advance_start(outgoing)
+            arm_events: list[SessionEvent] = []
+            if self._held != held_before or self._held is not None:
+                self._move_held()
+                arm_events = self._after_arm_change()
+            self._confirmed = None
+            robot, loop = self._client, self._loop
+        asyncio.run_coroutine_threadsafe(self._send(robot, comm, outgoing), loop)
+        view = self.sent_view()
+        self._emit([SentChanged(sent=view), ProgramChanged(program=self.program_view()), *arm_events])
+        self._refresh_predicted()
+        return view
+
+    def _advance_start(self, statements: list[Statement]) -> None:
+        """The program now starts where the submitted statements are predicted to end; a grasp
+        or release among them changes what the virtual gripper holds."""
+        if self._start_unknown:
+            return
+        plan = plan_program(statements, self.robot, self.cell, start_q=self._start_q)
+        self._start_q = plan.q_final.copy()
+        self._start_source = "predicted"
+        if plan.after_task is not None or plan.refusal is not None:
+            self._start_unknown = True
+        for segment in plan.segments:
+            if isinstance(segment.statement, TaskCall):
+                self._track_task_virtual(segment.statement, world_T_tcp(self.robot, segment.q_start, self.frames))
+
+    def _track_task_virtual(self, call: TaskCall, world_T_tcp_at: np.ndarray) -> None:
+        """Grasp/release change what the virtual gripper holds (predicted at the task's pose)."""
+        name = call.name.lower()
+        if name.startswith("grasp") and call.args:
+            obj = self._resolve_object(call.args[0])
+            if obj is not None:
+                self._held = obj
+                self._tcp_T_held = invert(world_T_tcp_at) @ self._world_T_object(obj)
+        elif (name.startswith("release") or name.startswith("insert")) and self._held is not None:
+            if self._tcp_T_held is not None:
+                self._object_poses[self._held] = world_T_tcp_at @ self._tcp_T_held
+            self._held, self._tcp_T_held = None, None
+
+    def _resolve_object(self, arg: str) -> str | None:
+        for n in self.cell.object_names:
+            if n.lower() == arg.lower():
+                return n
+        return None
+
+    async def _send(self, robot, comm: int, statements: list[Statement]) -> None:
+        t0 = self._clock()
+        try:
+            numbers = await robot.submit(statements)
+        except TeleprogError as exc:  # CommunicationRejected
+            with self._lock:
+                for s in self._sent:
+                    if s.comm == comm:
+                        s.status, s.reason, s.finished_at = SentStatus.REJECTED, str(exc), time.time()
+                # what was predicted did not happen: the robot's state is the truth now
+                self._start_unknown = True
+            self._emit([SentChanged(sent=self.sent_view()), Notice(level="error", message=str(exc))])
+            return
+        except Exception as exc:  # noqa: BLE001 - never let a send die silently
+            log.exception("submission %d failed", comm)
+            self._emit([Notice(level="error", message=f"submission failed: {exc}")])
+            return
+        self.note_round_trip(self._clock() - t0)
+        with self._lock:
+            items = [s for s in self._sent if s.comm == comm]
+            now = time.time()
+            for s, number in zip(items, numbers):
+                s.number, s.answered_at = number, now
+                if s.status is SentStatus.SENDING:
+                    s.status = SentStatus.RECEIVED
+                self._by_number[number] = s
+                for report in self._early_reports.pop(number, []):
+                    self._apply_report(s, report)
+        self._emit([SentChanged(sent=self.sent_view())])
+        self._refresh_predicted()
+
+    def on_report(self, report) -> None:
+        """A ``StatusReport`` from the robot (the ``RobotClient`` calls this on the loop thread;
+        a replay of a recorded session may call it too)."""
+        with self._lock:
+            s = self._by_number.get(report.number)
+            if s is None:
+                self._early_reports.setdefault(report.number, []).append(report)
+                return
+            self._apply_report(s, report)
+            final = s.status in FINAL_SENT
+        self._emit([SentChanged(sent=self.sent_view())])
+        if final:
+            self._refresh_predicted()
+            self._check_divergence()
+
+    def _apply_report(self, s: _Sent, report) -> None:
+        status = SentStatus(report.state.value)
+        now = time.time()
+        if status is SentStatus.RUNNING and s.started_at is None:
+            s.started_at = now
+        if status in FINAL_SENT:
+            s.finished_at = now
+            if s.started_at is None:
+                s.started_at = now
+            if status is SentStatus.DONE and isinstance(s.statement, TaskCall):
+                self._track_task_remote(s.statement, report)
+            if status is not SentStatus.DONE:
+                self._start_unknown = True  # the robot did not end where predicted
+        if s.status not in FINAL_SENT:
+            s.status = status
+        s.reason = report.reason or s.reason
+
+    def _track_task_remote(self, call: TaskCall, report) -> None:
+        """What the robot holds after a finished grasp/release, and where a released object lies."""
+        name = call.name.lower()
+        snap = getattr(report, "robot", None)
+        q = np.array(snap.q, dtype=float) if snap is not None else (
+            np.array(self._telemetry.q, dtype=float) if self._telemetry is not None else None)
+        if q is None:
+            return
+        world_T_tcp_remote = self._remote_tcp(q)
+        if name.startswith("grasp") and call.args:
+            obj = self._resolve_object(call.args[0])
+            if obj is not None:
+                here = self._remote_poses.get(obj, np.asarray(self.cell.object(obj).world_T_object, dtype=float))
+                self._remote_held, self._remote_tcp_T_held = obj, invert(world_T_tcp_remote) @ here
+        elif (name.startswith("release") or name.startswith("insert")) and self._remote_held is not None:
+            if self._remote_tcp_T_held is not None:
+                self._remote_poses[self._remote_held] = world_T_tcp_remote @ self._remote_tcp_T_held
+            self._remote_held, self._remote_tcp_T_held = None, None
+
+    def on_telemetry(self, frame) -> None:
+        """A ``TelemetryFrame`` (from the ``RobotClient`` on the loop thread, 50 Hz, or a replay):
+        publish the remote arm at a lower rate; check divergence when the robot's state changes."""
+        now = self._clock()
+        with self._lock:
+            old = self._telemetry
+            self._telemetry, self._telemetry_at = frame, now
+            changed_state = old is None or old.state != frame.state
+            due = now - self._last_remote_emit >= 1.0 / self.settings.remote_event_hz
+            if due or changed_state:
+                self._last_remote_emit = now
+        if due or changed_state:
+            view = self.remote_view()
+            if view is not None:
+                self._emit([RemoteArmChanged(remote=view)])
+        if changed_state:
+            self._check_divergence()
+
+    def _remote_tcp(self, q: np.ndarray) -> np.ndarray:
+        return self.cell.world_T_base @ self.robot.fk(q, self._remote_data) @ self.cell.flange_T_tcp
+
+    def _refresh_predicted(self) -> None:
+        """Plan the submitted-not-done statements from the remote arm (or the last known start)."""
+        with self._lock:
+            pending = [s for s in self._sent if s.status not in FINAL_SENT]
+            if not pending:
+                view = PredictedPathView()
+            else:
+                frame = self._telemetry
+                start = np.array(frame.q, dtype=float) if frame is not None else self._start_q
+                try:
+                    plan = plan_program([s.statement for s in pending], self.robot, self.cell, start_q=start)
+                except TeleprogError:
+                    plan = None
+                if plan is None or plan.duration <= 0:
+                    view = PredictedPathView(numbers=[s.number for s in pending if s.number is not None])
+                else:
+                    ts = np.linspace(0.0, plan.duration, self.settings.predicted_points)
+                    qs = plan.sample(ts).q
+                    data = self.robot.new_data()
+                    pts = [(self.cell.world_T_base @ self.robot.fk(q, data) @ self.cell.flange_T_tcp)[:3, 3].tolist() for q in qs]
+                    view = PredictedPathView(points=pts, numbers=[s.number for s in pending if s.number is not None], end_q=plan.q_final.tolist())
+            self._predicted = view
+        self._emit([PredictedPathChanged(predicted=view)])
+
+    # recovery --------------------------------------------------------------------------------
+    def stop(self, *, client: str | None = None) -> LinkView:
+        """STOP: the robot halts and waits (priority command; acknowledged after a round trip).
+        Anybody may press STOP, whoever holds control."""
+        return self._recover("stop", lambda r: r.stop(), None)
+
+    def resume(self, *, client: str | None = None) -> LinkView:
+        return self._recover("resume", lambda r: r.resume(), client)
+
+    def skip(self, number: int | None = None, *, client: str | None = None) -> LinkView:
+        """Skip statement ``number`` (default: the one running, else the first not final)."""
+        with self._lock:
+            if number is None:
+                frame = self._telemetry
+                if frame is not None and frame.statement:
+                    number = frame.statement
+                else:
+                    number = next((s.number for s in self._sent if s.status not in FINAL_SENT and s.number is not None), None)
+            if number is None:
+                raise ConflictError("nothing to skip: no statement is running or waiting")
+        n = int(number)
+        return self._recover(f"skip {n}", lambda r: r.skip(n), client)
+
+    def abort(self, *, client: str | None = None) -> LinkView:
+        """Flush every statement the robot has not finished."""
+        return self._recover("abort", lambda r: r.abort(), client)
+
+    def _recover(self, what: str, call, client: str | None) -> LinkView:
+        with self._lock:
+            if what != "stop":
+                self._check_control(client)
+            if self._client is None or self._loop is None:
+                raise NotConnectedError("no robot is configured for this console (started with --no-robot)")
+            self._recovery_counter += 1
+            key = self._recovery_counter
+            self._recovery_pending[key] = what
+            robot, loop = self._client, self._loop
+
+        async def run() -> None:
+            t0 = self._clock()
+            try:
+                ack = await call(robot)
+            except Exception as exc:  # noqa: BLE001
+                self._emit([Notice(level="error", message=f"{what} failed: {exc}")])
+                ack = None
+            else:
+                self.note_round_trip(self._clock() - t0)
+            with self._lock:
+                self._recovery_pending.pop(key, None)
+            if ack is not None:
+                level = "info" if ack.applied else "warning"
+                detail = f": {ack.detail}" if ack.detail else ""
+                self._emit([Notice(level=level, message=f"robot {'applied' if ack.applied else 'did not apply'} {what}{detail}")])
+            self._emit([LinkChanged(link=self.link_view())])
+
+        asyncio.run_coroutine_threadsafe(run(), loop)
+        view = self.link_view()
+        self._emit([LinkChanged(link=view)])
+        return view
+
+    # divergence ------------------------------------------------------------------------------
+    def _check_divergence(self) -> None:
+        """Compare the reported arm with where it should be, once the robot is at rest."""
+        with self._lock:
+            frame = self._telemetry
+            if frame is None:
+                return
+            state = frame.state.name.lower()
+            pending = any(s.status not in FINAL_SENT for s in self._sent)
+            at_rest = state in ("stopped", "fault") or (state == "idle" and not pending)
+            if not at_rest:
+                if self._divergence.checked:
+                    self._divergence = self._divergence.model_copy(update={"checked": False})
+                return
+            q = np.array(frame.q, dtype=float)
+            expect = self._start_q
+            jerr = float(np.max(np.abs(q - expect))) if q.size == expect.size else float("inf")
+            terr = float(np.linalg.norm(self._remote_tcp(q)[:3, 3] - world_T_tcp(self.robot, expect, self.frames)[:3, 3]))
+            diverged = self._start_unknown or jerr > self.settings.divergence_joint or terr > self.settings.divergence_tool
+            msg = (
+                f"the robot stopped {np.degrees(jerr):.2f} deg / {terr * 1e3:.1f} mm away from where the program expects it; re-sync to continue from there"
+                if diverged else ""
             )
-        )
+            view = DivergenceView(diverged=diverged, joint_error=jerr if np.isfinite(jerr) else 0.0, tool_error=terr,
+                                  threshold_joint=self.settings.divergence_joint, threshold_tool=self.settings.divergence_tool,
+                                  checked=True, message=msg)
+            changed = view != self._divergence
+            self._divergence = view
+        if changed:
+            self._emit([DivergenceChanged(divergence=view)])
+
+    def resync(self, *, client: str | None = None) -> SessionSnapshot:
+        """Put the virtual arm (and the object the robot holds) where telemetry says, and start
+        the program from there (§4.2.3 error correction)."""
+        with self._lock:
+            self._check_control(client)
+            self._check_not_previewing("re-sync")
+            frame = self._telemetry
+            if frame is None:
+                raise ConflictError("no telemetry from the robot yet: nothing to re-sync from")
+            q = self.robot.as_q(np.array(frame.q, dtype=float))
+            self._state = VirtualState(q.copy(), world_T_tcp(self.robot, q, self.frames), None, self._state.version + 1)
+            # objects as the robot's state implies: the held one in the remote gripper, released
+            # ones where the robot let them go
+            self._object_poses.update({k: v.copy() for k, v in self._remote_poses.items()})
+            self._held = self._remote_held
+            self._tcp_T_held = None if self._remote_tcp_T_held is None else self._remote_tcp_T_held.copy()
+            self._move_held()
+            self._start_q = q.copy()
+            self._start_source = "telemetry"
+            self._start_unknown = False
+            self._generator.reset()
+            self._gen_mode = None
+            self._confirmed = None
+            self._divergence = self._divergence.model_copy(update={"diverged": False, "message": "re-synced from telemetry"})
+            state, listeners = self._state, list(self._listeners)
+            events = self._after_arm_change()
+        for listener in listeners:
+            try:
+                listener(state)
+            except Exception:
+                log.exception("session listener failed")
+        self._emit([*events, ProgramChanged(program=self.program_view()), DivergenceChanged(divergence=self.divergence_view())])
+        return self.snapshot()
+
+    async def monitor_link(self) -> None:
+        """Publish ``LinkChanged`` when the link's state changes and the age as it grows; run on
+        the app's loop for the console's lifetime."""
+        while not self._closing:
+            # every poll: the telemetry age grows even when nothing else changes
+            self._last_link = self.link_view()
+            self._emit([LinkChanged(link=self._last_link)])
+            await asyncio.sleep(self.settings.link_poll_s)
+
+    def close(self) -> None:
+        """Stop the preview player thread."""
+        self._closing = True
+        self._player_wake.set()
+
+    # =========================================================================== events
+    def _emit(self, events: Sequence[SessionEvent]) -> None:
+        if not events:
+            return
+        with self._lock:
+            listeners = list(self._event_listeners)
+        for event in events:
+            for listener in listeners:
+                try:
+                    listener(event)
+                except Exception:  # a broken watcher must not break the session
+                    log.exception("session event listener failed")

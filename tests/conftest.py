@@ -18,6 +18,15 @@ def console(tmp_path: Path) -> Iterator[RunningConsole]:
     stop_process(running.proc)
 
 
+@pytest.fixture(scope="module")
+def linked_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningConsole]:
+    """The console with its own telerobot and a delayed link (200 ms each way), as
+    ``teleprog up`` starts them; one per test module (starting the three takes seconds)."""
+    running = start_console(tmp_path_factory.mktemp("linked"), "--delay-ms", "200")
+    yield running
+    stop_process(running.proc)
+
+
 @pytest.fixture(scope="session")
 def chromium():
     from playwright.sync_api import sync_playwright
@@ -48,3 +57,9 @@ def pytest_runtest_makereport(item, call):
     outcome = yield
     rep = outcome.get_result()
     setattr(item, "rep_" + rep.when, rep)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Run the browser tests last: Playwright's sync API keeps an event loop running in the main
+    thread for the rest of the session, and tests that call ``asyncio.run`` cannot run after it."""
+    items.sort(key=lambda item: item.get_closest_marker("browser") is not None or "tests/browser/" in str(item.fspath))

@@ -1,51 +1,57 @@
-"""The driving panel (thesis 4.3.4): moving part, frame, constraint, motion, joint sliders, and
-a transform gizmo on the tool point. Every control turns into a ``Session`` call."""
+"""The driving panel (thesis 4.3.4): moving part, frame, direction constraint (one axis or one
+plane), translate or rotate, a slider per joint, frames on demand, and a transform gizmo on the
+tool point. Every control turns into a session call; a blocked motion shows why, and a
+collision while driving shows as a warning here and red triangles in the scene.
+"""
 
 from __future__ import annotations
 
 import logging
+import threading
 
 import numpy as np
 import viser
-import viser.transforms as vtf
 
-from server.session import Session, VirtualState
+from server.console_models import ArmView, CollisionView
 from shared.robots.jog import CONSTRAINTS, FRAME_NAMES, MOTIONS
+from webui.actions import Actions
 from webui.scene import FRAME_AXES, CellScene
+from webui.scene_util import matrix, wxyz
 
 log = logging.getLogger(__name__)
 
 TOOL = "Tool"
+SLIDER_RELEASE_S = 0.4
+AXES = tuple(c for c in CONSTRAINTS if len(c) == 1)
+PLANES = tuple(c for c in CONSTRAINTS if len(c) == 2)
 
 
-def _matrix(wxyz: np.ndarray, position: np.ndarray) -> np.ndarray:
-    out = np.eye(4)
-    out[:3, :3] = vtf.SO3(np.asarray(wxyz)).as_matrix()
-    out[:3, 3] = position
-    return out
+def direction_label(constraint: str) -> str:
+    return f"{constraint} axis" if len(constraint) == 1 else f"{constraint} plane"
 
 
 class DrivePanel:
     """GUI controls for driving the virtual arm."""
 
-    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene) -> None:
+    def __init__(self, server: viser.ViserServer, session, scene: CellScene, actions: Actions) -> None:
         self.server = server
         self.session = session
-        robot = session.robot
+        self.actions = actions
+        robot = scene.robot
         gui = server.gui
-        with gui.add_folder("Drive"):
-            self.part = gui.add_dropdown("Moving part", [TOOL] + [f"J{i}" for i in range(1, robot.dof + 1)], initial_value=TOOL)
-            self.frame = gui.add_dropdown("Frame", list(FRAME_NAMES), initial_value="world")
-            self.constraint = gui.add_dropdown("Direction", list(CONSTRAINTS), initial_value="xy")
-            self.motion = gui.add_dropdown("Motion", list(MOTIONS), initial_value="translate")
-            self.status = gui.add_markdown("")
+        self.part = gui.add_dropdown("Moving part", [TOOL] + [f"J{i}" for i in range(1, robot.dof + 1)], initial_value=TOOL)
+        self.frame = gui.add_dropdown("Frame", list(FRAME_NAMES), initial_value="world")
+        self._directions = {direction_label(c): c for c in (*AXES, *PLANES)}
+        self.constraint = gui.add_dropdown("Direction", list(self._directions), initial_value=direction_label("xy"))
+        self.motion = gui.add_dropdown("Motion", list(MOTIONS), initial_value="translate")
+        self.status = gui.add_markdown("")
+        self.collision = gui.add_markdown("")
         with gui.add_folder("Joints (deg)"):
             self.sliders: list[viser.GuiInputHandle[float]] = []
-            q = session.state.q
             for i in range(robot.dof):
                 slider = gui.add_slider(
                     f"J{i + 1}", min=float(np.degrees(robot.lower[i])), max=float(np.degrees(robot.upper[i])),
-                    step=0.1, initial_value=float(np.degrees(q[i])),
+                    step=0.1, initial_value=0.0,
                 )
                 slider.on_update(self._slider_callback(i + 1))
                 self.sliders.append(slider)
@@ -53,62 +59,103 @@ class DrivePanel:
             for name in FRAME_AXES:
                 box = gui.add_checkbox(f"Show {name}", initial_value=False)
                 box.on_update(lambda event, name=name: scene.set_axes_visible(name, bool(event.target.value)))
-        state = session.state
-        self.gizmo = server.scene.add_transform_controls(
-            "/tool_gizmo", scale=0.18, wxyz=vtf.SO3.from_matrix(state.world_T_tcp[:3, :3]).wxyz,
-            position=state.world_T_tcp[:3, 3],
-        )
+        self.gizmo = server.scene.add_transform_controls("/tool_gizmo", scale=0.18)
         self._dragging = False
+        self._arm: ArmView | None = None
+        self._timer_lock = threading.Lock()
+        self._release_timer: threading.Timer | None = None
         self.gizmo.on_update(self._on_gizmo)
-        self.part.on_update(lambda _: self._refresh_gizmo())
-        self.motion.on_update(lambda _: self._refresh_gizmo())
+        for control in (self.part, self.motion, self.constraint):
+            control.on_update(lambda _: self._refresh_gizmo())
         self._refresh_gizmo()
-        session.subscribe(self._on_state)
-        self._on_state(state)
 
     # -- callbacks ---------------------------------------------------------------------------
     def _slider_callback(self, joint: int):
         def callback(event: viser.GuiEvent) -> None:
             if event.client is None:  # our own programmatic update
                 return
-            self.session.set_joint(joint, float(np.radians(event.target.value)))
+            value = float(np.radians(event.target.value))
+            self.actions.run(f"turn J{joint}", lambda: self.session.set_joint(joint, value))
+            self._release_soon()
 
         return callback
+
+    def _release_soon(self) -> None:
+        """A slider has no "let go" event: treat a pause of ``SLIDER_RELEASE_S`` as one."""
+        with self._timer_lock:
+            if self._release_timer is not None:
+                self._release_timer.cancel()
+            self._release_timer = threading.Timer(SLIDER_RELEASE_S, lambda: self.actions.run("release", self.session.release))
+            self._release_timer.daemon = True
+            self._release_timer.start()
+
+    def _on_drag_start(self, _event) -> None:
+        self._dragging = True
+
+    def _on_drag_end(self, _event) -> None:
+        """The operator let go: the session closes the open generated segment."""
+        self._dragging = False
+        self.actions.run("release", self.session.release)
+        if self._arm is not None:
+            self._snap_gizmo(self._arm)
 
     def _on_gizmo(self, event) -> None:
         phase = getattr(event, "phase", "update")
         if phase == "start":
-            self._dragging = True
+            self._on_drag_start(event)
             return
         if phase == "end":
-            self._dragging = False
-            self._snap_gizmo(self.session.state)
+            self._on_drag_end(event)
             return
         if self.part.value != TOOL:
             return
-        goal = _matrix(self.gizmo.wxyz, self.gizmo.position)
-        self.session.jog_tool_to(
-            goal, frame=self.frame.value, constraint=self.constraint.value, motion=self.motion.value
+        goal = matrix(self.gizmo.wxyz, self.gizmo.position)
+        constraint = self._directions[self.constraint.value]
+        self.actions.run(
+            "drive",
+            lambda: self.session.jog_tool_to(goal, frame=self.frame.value, constraint=constraint, motion=self.motion.value),
         )
 
     def _refresh_gizmo(self) -> None:
+        """Offer only the handles the chosen constraint allows (the jog rules still apply)."""
         tool = self.part.value == TOOL
         self.gizmo.visible = tool
-        self.gizmo.disable_rotations = self.motion.value != "rotate"
-        self.gizmo.disable_axes = self.motion.value == "rotate"
-        self.gizmo.disable_sliders = self.motion.value == "rotate"
+        rotate = self.motion.value == "rotate"
+        self.gizmo.disable_rotations = not rotate
+        self.gizmo.disable_axes = rotate
+        self.gizmo.disable_sliders = rotate
 
-    def _snap_gizmo(self, state: VirtualState) -> None:
-        self.gizmo.wxyz = vtf.SO3.from_matrix(state.world_T_tcp[:3, :3]).wxyz
-        self.gizmo.position = state.world_T_tcp[:3, 3]
+    def _snap_gizmo(self, arm: ArmView) -> None:
+        world_T_tcp = np.asarray(arm.world_T_tcp)
+        self.gizmo.wxyz = wxyz(world_T_tcp)
+        self.gizmo.position = world_T_tcp[:3, 3]
 
-    def _on_state(self, state: VirtualState) -> None:
-        for slider, value in zip(self.sliders, np.degrees(state.q)):
-            slider.value = float(round(value, 1))
+    # -- session events -----------------------------------------------------------------------
+    def show_arm(self, arm: ArmView) -> None:
+        self._arm = arm
+        for slider, value in zip(self.sliders, arm.q_deg):
+            rounded = float(round(value, 1))
+            if slider.value != rounded:
+                slider.value = rounded
         if not self._dragging:
-            self._snap_gizmo(state)
-        x, y, z = state.world_T_tcp[:3, 3] * 1e3
+            self._snap_gizmo(arm)
+        x, y, z = arm.tool_xyz_mm
         text = f"Tool (world): x {x:.1f} mm, y {y:.1f} mm, z {z:.1f} mm"
-        if state.last_jog is not None and state.last_jog.blocked:
-            text += f"\n\n**Blocked ({state.last_jog.blocked}):** {state.last_jog.message}"
+        if arm.held:
+            text += f"; holding {arm.held}"
+        if arm.blocked:
+            text += f"  \n**Blocked ({arm.blocked}):** {arm.message}"
         self.status.content = text
+
+    def show_collision(self, view: CollisionView) -> None:
+        lines = []
+        if view.colliding:
+            pairs = ", ".join(f"{a} / {b}" for a, b in view.pairs[:4])
+            lines.append(f"**COLLISION:** {pairs}")
+        if view.joint_limit:
+            lines.append(f"**Joint limit:** {view.joint_limit}")
+        if view.min_distance is not None and view.nearest is not None and not view.colliding:
+            lines.append(f"Nearest: {view.nearest[0]} / {view.nearest[1]} at {view.min_distance * 1e3:.1f} mm")
+        if view.zone_object is not None and view.zone_distance is not None:
+            lines.append(f"Zone: {view.zone.value} ({view.zone_object} at {view.zone_distance * 1e3:.0f} mm)")
+        self.collision.content = "  \n".join(lines)

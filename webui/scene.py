@@ -1,86 +1,98 @@
 """The 3D scene of the console: the cell's objects, the virtual arm, frames on demand.
 
-Draws what the session says; holds no kinematics. Meshes are built once; only the link frames'
-poses change when the arm moves (stable node names, handles updated in place).
+Draws what the session says; holds no kinematics of its own (link poses come from the robot
+model). Meshes are built once; only node poses change when the arm moves (stable node names,
+handles updated in place). Each collision body (``link3``, ``peg``) has a scene node whose
+frame is the body's own frame, so overlays such as red triangles can hang under it.
 """
 
 from __future__ import annotations
 
-import numpy as np
-import trimesh
-import viser
-import viser.transforms as vtf
+from collections.abc import Mapping
 
-from server.session import Session, VirtualState
+import numpy as np
+import viser
+
+from shared.cells.cell import Cell
+from shared.collision.mesh_model import BodyMesh, body_mesh
 from shared.robots.shapes import link_meshes
+from webui.scene_util import colored, place
 
 FRAME_AXES = ("world", "base", "work", "tool")
 
 
-def _wxyz(transform: np.ndarray) -> np.ndarray:
-    return vtf.SO3.from_matrix(transform[:3, :3]).wxyz
-
-
-def _place(handle: viser.SceneNodeHandle, transform: np.ndarray) -> None:
-    handle.wxyz = _wxyz(transform)
-    handle.position = transform[:3, 3]
-
-
-def _colored(mesh: trimesh.Trimesh, color: tuple[int, int, int]) -> trimesh.Trimesh:
-    out = mesh.copy()
-    out.visual = trimesh.visual.ColorVisuals(out, face_colors=np.array([*color, 255], dtype=np.uint8))
-    return out
-
-
 class CellScene:
-    """The cell and the virtual arm in a viser scene, following a ``Session``."""
+    """The cell and the virtual arm in a viser scene."""
 
-    def __init__(self, server: viser.ViserServer, session: Session) -> None:
+    def __init__(self, server: viser.ViserServer, cell: Cell) -> None:
         self.server = server
-        self.session = session
-        cell = session.cell
+        self.cell = cell
+        self.robot = cell.robot
+        self._data = self.robot.new_data()  # the scene's own pinocchio data (model vs data)
         server.scene.set_up_direction("+z")
         server.scene.add_grid("/floor", width=3.0, height=3.0, cell_size=0.1, position=(0.0, 0.0, 0.0))
+        self.body_nodes: dict[str, str] = {}
+        self.body_meshes: dict[str, BodyMesh] = {}
+        self._objects: dict[str, viser.FrameHandle] = {}
+        self._object_home = {obj.name: obj.world_T_object for obj in cell.objects}
+        self._object_shown: dict[str, np.ndarray] = {}
         for obj in cell.objects:
             node = server.scene.add_frame(f"/cell/{obj.name}", show_axes=False)
-            _place(node, obj.world_T_object)
+            place(node, obj.world_T_object)
             mesh = link_meshes(obj.shapes)
             if mesh is not None:
-                server.scene.add_mesh_trimesh(f"/cell/{obj.name}/mesh", _colored(mesh, obj.color))
+                server.scene.add_mesh_trimesh(f"/cell/{obj.name}/mesh", colored(mesh, obj.color))
+            self._register_body(obj.name, f"/cell/{obj.name}", obj.shapes)
+            self._objects[obj.name] = node
+            self._object_shown[obj.name] = obj.world_T_object
         self._links: list[viser.FrameHandle] = []
-        robot = session.robot
-        for i in range(robot.dof + 1):
+        for i in range(self.robot.dof + 1):
             node = server.scene.add_frame(f"/robot/link{i}", show_axes=False, axes_length=0.08, axes_radius=0.004)
-            shapes = robot.shapes.get(i, ())
+            shapes = self.robot.shapes.get(i, ())
             mesh = link_meshes(shapes)
             if mesh is not None:
-                color = shapes[0].color
-                server.scene.add_mesh_trimesh(f"/robot/link{i}/mesh", _colored(mesh, color))
+                server.scene.add_mesh_trimesh(f"/robot/link{i}/mesh", colored(mesh, shapes[0].color))
+            self._register_body(f"link{i}", f"/robot/link{i}", shapes)
             self._links.append(node)
+        # the tool point rides on the last link: the scene graph places it, no maths here
+        self.tcp_node = f"/robot/link{self.robot.dof}/tcp"
+        place(server.scene.add_frame(self.tcp_node, show_axes=False), cell.flange_T_tcp)
         self._axes: dict[str, viser.FrameHandle] = {
-            name: server.scene.add_frame(f"/axes/{name}", axes_length=0.15, axes_radius=0.006, visible=False)
+            name: server.scene.add_frame(
+                f"{self.tcp_node}/axes" if name == "tool" else f"/axes/{name}",
+                axes_length=0.15, axes_radius=0.006, visible=False,
+            )
             for name in FRAME_AXES
         }
-        _place(self._axes["world"], np.eye(4))
-        _place(self._axes["base"], cell.world_T_base)
-        _place(self._axes["work"], cell.frame("work"))
-        self.show(session.state)
-        session.subscribe(self.show)
+        place(self._axes["world"], np.eye(4))
+        place(self._axes["base"], cell.world_T_base)
+        place(self._axes["work"], cell.frame("work"))
+
+    def _register_body(self, name: str, node: str, shapes) -> None:
+        mesh = body_mesh(name, shapes)
+        if mesh is not None:
+            self.body_nodes[name] = node
+            self.body_meshes[name] = mesh
 
     def set_axes_visible(self, name: str, visible: bool) -> None:
         self._axes[name].visible = visible
 
-    def show(self, state: VirtualState) -> None:
-        """Pose every link for the state's joint vector."""
-        world_T_links = self.session.cell.world_T_base @ self.session.robot.link_poses(state.q, self._data)
+    def show_arm(self, q: np.ndarray) -> None:
+        """Pose every link for joint vector ``q`` (rad), from the robot model's link poses."""
+        world_T_links = self.cell.world_T_base @ self.robot.link_poses(np.asarray(q, dtype=float), self._data)
         with self.server.atomic():
             for node, world_T_link in zip(self._links, world_T_links):
-                _place(node, world_T_link)
-            _place(self._axes["tool"], state.world_T_tcp)
+                place(node, world_T_link)
 
-    @property
-    def _data(self):  # the scene's own pinocchio data (model vs data)
-        data = getattr(self, "_pin_data", None)
-        if data is None:
-            data = self._pin_data = self.session.robot.new_data()
-        return data
+    def show_objects(self, world_T_objects: Mapping[str, np.ndarray]) -> None:
+        """Put objects at the given poses; objects not named go back to the cell file's pose."""
+        with self.server.atomic():
+            for name, node in self._objects.items():
+                pose = np.asarray(world_T_objects.get(name, self._object_home[name]), dtype=float)
+                if not np.array_equal(pose, self._object_shown[name]):
+                    place(node, pose)
+                    self._object_shown[name] = pose
+
+    def set_arm_visible(self, visible: bool) -> None:
+        for node in self._links:
+            node.visible = visible

@@ -1,4 +1,4 @@
-"""``teleprog up``: the console (web page, API and 3D scene)."""
+"""``teleprog up``: the whole product: telerobot, delayed link and console (web page, API, 3D scene)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,16 @@ def _cmd_up(args: argparse.Namespace) -> int:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    up = sub.add_parser("up", help="start the console (web page, API and 3D scene)")
-    up.add_argument("--port", type=int, default=None, help="HTTP port (default 8080)")
+    up = sub.add_parser(
+        "up", help="start the telerobot, the delayed link and the console; print the URL to open"
+    )
+    up.add_argument("--port", type=int, default=None, help="HTTP port of the console (default 8080; 0: any free)")
     up.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
     up.add_argument("--cell", default=None, help="cell file (default assets/cells/peg_in_hole.toml)")
+    up.add_argument("--delay-ms", type=float, default=None, help="link delay each way in ms (default 3000)")
+    up.add_argument("--robot-port", type=int, default=None, help="port of the started telerobot (default: any free)")
+    up.add_argument("--link-port", type=int, default=None, help="port of the started link (default: any free)")
+    group = up.add_mutually_exclusive_group()
+    group.add_argument("--no-robot", action="store_true", help="console only: start no robot and no link")
+    group.add_argument("--robot-url", default=None, help="use a running robot or link at this ws:// URL")
     up.set_defaults(handler=_cmd_up)

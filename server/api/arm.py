@@ -1,0 +1,56 @@
+"""Driving the virtual arm (§4.3.4): joint and tool jogs, letting go, collision and zone."""
+
+from __future__ import annotations
+
+import numpy as np
+from fastapi import APIRouter
+
+from server.api.deps import ClientDep, SessionDep
+from server.api_models import JogJointIn, JogToolIn, SetJointsIn, StateOut
+from server.console_models import ArmView, CollisionView, ProgramView
+
+router = APIRouter(prefix="/api", tags=["arm"])
+
+
+@router.get("/state", response_model=StateOut)
+def get_state(session: SessionDep) -> StateOut:
+    return StateOut.from_state(session.state)
+
+
+@router.get("/arm", response_model=ArmView)
+def get_arm(session: SessionDep) -> ArmView:
+    return session.arm_view()
+
+
+@router.put("/robot/joints", response_model=StateOut)
+def set_joints(body: SetJointsIn, session: SessionDep, client: ClientDep) -> StateOut:
+    """Put the virtual arm at a joint vector (degrees); 422 names a joint outside its range."""
+    return StateOut.from_state(session.set_q(np.radians(body.deg), client=client))
+
+
+@router.post("/jog/joint", response_model=StateOut)
+def jog_joint(body: JogJointIn, session: SessionDep, client: ClientDep) -> StateOut:
+    return StateOut.from_state(session.jog_joint(body.joint, float(np.radians(body.delta_deg)), client=client))
+
+
+@router.post("/jog/tool", response_model=StateOut)
+def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOut:
+    scale = 1e-3 if body.motion == "translate" else np.pi / 180.0
+    return StateOut.from_state(
+        session.jog_tool(
+            frame=body.frame, constraint=body.constraint, motion=body.motion,
+            displacement=np.array(body.displacement) * scale, client=client,
+        )
+    )
+
+
+@router.post("/jog/release", response_model=ProgramView)
+def release(session: SessionDep, client: ClientDep) -> ProgramView:
+    """The operator let go: the open generated segment becomes a statement."""
+    return session.release(client=client)
+
+
+@router.get("/collision", response_model=CollisionView)
+def collision(session: SessionDep) -> CollisionView:
+    """Collision report and control zone of the virtual arm now."""
+    return session.collision_view()

@@ -1,0 +1,63 @@
+"""The preview player (§4.3.7 task preview): begin a range, play, pause, step, seek, end."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from pydantic import BaseModel, Field
+
+from server.api.deps import ClientDep, SessionDep
+from server.console_models import PreviewView
+
+router = APIRouter(prefix="/api/preview", tags=["preview"])
+
+
+class RangeIn(BaseModel):
+    start: int = Field(0, ge=0, description="first statement, 0-based")
+    stop: int = Field(description="one past the last statement")
+
+
+class PlayIn(BaseModel):
+    rate: float = Field(1.0, gt=0, le=100, description="x real time")
+
+
+class SeekIn(BaseModel):
+    t: float = Field(description="s from the range's start")
+
+
+class StepIn(BaseModel):
+    statements: int = Field(1, description="+n: to the end of the n-th statement ahead; -n: back")
+
+
+@router.get("", response_model=PreviewView)
+def get_preview(session: SessionDep) -> PreviewView:
+    return session.preview_view()
+
+
+@router.post("/begin", response_model=PreviewView)
+def begin(body: RangeIn, session: SessionDep, client: ClientDep) -> PreviewView:
+    return session.begin_preview(body.start, body.stop, client=client)
+
+
+@router.post("/play", response_model=PreviewView)
+def play(session: SessionDep, client: ClientDep, body: PlayIn | None = None) -> PreviewView:
+    return session.play((body or PlayIn()).rate, client=client)
+
+
+@router.post("/pause", response_model=PreviewView)
+def pause(session: SessionDep, client: ClientDep) -> PreviewView:
+    return session.pause(client=client)
+
+
+@router.post("/seek", response_model=PreviewView)
+def seek(body: SeekIn, session: SessionDep, client: ClientDep) -> PreviewView:
+    return session.seek(body.t, client=client)
+
+
+@router.post("/step", response_model=PreviewView)
+def step(session: SessionDep, client: ClientDep, body: StepIn | None = None) -> PreviewView:
+    return session.step((body or StepIn()).statements, client=client)
+
+
+@router.post("/end", response_model=PreviewView)
+def end(session: SessionDep, client: ClientDep) -> PreviewView:
+    return session.end_preview(client=client)

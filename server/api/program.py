@@ -1,0 +1,127 @@
+"""The programming panel (§4.3.6): select, insert, delete, modify, conditions, undo/redo,
+automatic generation, load and save program files."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from fastapi import APIRouter, Request
+from fastapi.responses import PlainTextResponse
+from pydantic import BaseModel, Field
+
+from server.api.deps import ClientDep, SessionDep
+from server.console_models import ProgramView
+from shared.errors import InputError
+from shared.language.parser import parse_statement
+from shared.language.statements import Speed, Statement, Until
+from shared.program.editor import KEEP
+
+router = APIRouter(prefix="/api/program", tags=["program"])
+
+
+class SelectIn(BaseModel):
+    index: int = Field(description="0-based; the trailing empty statement is entries[-1]")
+
+
+class StatementIn(BaseModel):
+    """A statement as text (``DRAW TO (600, 0, 300) mm``) or as its JSON form; exactly one."""
+
+    text: str | None = None
+    statement: Statement | None = None
+
+    def resolve(self) -> Statement:
+        if (self.text is None) == (self.statement is None):
+            raise InputError("give the statement either as 'text' or as 'statement' (JSON form), not both or neither")
+        return parse_statement(self.text) if self.text is not None else self.statement  # type: ignore[return-value]
+
+
+class ConditionsIn(BaseModel):
+    """Fields left out are kept; ``null`` clears. Text forms: ``with`` like ``SPEED 20 %``,
+    ``until`` like ``FORCE > 5 N``."""
+
+    speed: Speed | None = None
+    until: Until | None = None
+    clear_speed: bool = False
+    clear_until: bool = False
+
+
+class AutoIn(BaseModel):
+    on: bool
+
+
+class LoadIn(BaseModel):
+    text: str = Field(description="the file's content")
+    filename: str = Field("program.tp", description="its name; .json selects the JSON form")
+
+
+@router.get("", response_model=ProgramView)
+def get_program(session: SessionDep) -> ProgramView:
+    return session.program_view()
+
+
+@router.post("/select", response_model=ProgramView)
+def select(body: SelectIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    return session.select(body.index, client=client)
+
+
+@router.post("/insert", response_model=ProgramView)
+def insert(body: StatementIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Insert before the selection; 409 names the §4.3.6 rule that refuses it."""
+    return session.insert(body.resolve(), client=client)
+
+
+@router.post("/delete", response_model=ProgramView)
+def delete(session: SessionDep, client: ClientDep) -> ProgramView:
+    return session.delete(client=client)
+
+
+@router.post("/modify", response_model=ProgramView)
+def modify(body: StatementIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    return session.modify(body.resolve(), client=client)
+
+
+@router.post("/conditions", response_model=ProgramView)
+def conditions(body: ConditionsIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Set or clear the WITH speed and UNTIL condition of the selected action."""
+    speed = None if body.clear_speed else (body.speed if body.speed is not None else KEEP)
+    until = None if body.clear_until else (body.until if body.until is not None else KEEP)
+    return session.modify_conditions(speed=speed, until=until, client=client)
+
+
+@router.post("/undo", response_model=ProgramView)
+def undo(session: SessionDep, client: ClientDep) -> ProgramView:
+    return session.undo(client=client)
+
+
+@router.post("/redo", response_model=ProgramView)
+def redo(session: SessionDep, client: ClientDep) -> ProgramView:
+    return session.redo(client=client)
+
+
+@router.put("/auto", response_model=ProgramView)
+def auto(body: AutoIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Automatic generation from the arm's motion on or off."""
+    return session.set_auto_generate(body.on, client=client)
+
+
+@router.post("/load", response_model=ProgramView)
+def load(body: LoadIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Replace the program by a file's content; a broken file is a 400 naming file:line:col."""
+    return session.load_program(body.text, body.filename, client=client)
+
+
+@router.post("/upload", response_model=ProgramView)
+async def upload(request: Request, session: SessionDep, client: ClientDep, filename: str = "program.tp") -> ProgramView:
+    """The same as ``load`` with the file as the raw request body."""
+    raw = await request.body()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{filename}: not UTF-8 text (byte {exc.start})") from None
+    return session.load_program(text, filename, client=client)
+
+
+@router.get("/save", response_class=PlainTextResponse)
+def save(session: SessionDep, format: Literal["text", "json"] = "text") -> PlainTextResponse:
+    """The program as a file (text form or JSON)."""
+    return PlainTextResponse(session.save_program(format))

@@ -1,0 +1,82 @@
+"""Submit and monitor (§4.3.6, §4.4): submit a range, the sent list, STOP/resume/skip/abort,
+the link, the remote arm, the predicted path, divergence and re-sync."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException
+from pydantic import BaseModel, Field
+
+from server.api.deps import ClientDep, SessionDep
+from server.console_models import DivergenceView, LinkView, PredictedPathView, RemoteArmView, SentListView, SessionSnapshot
+
+router = APIRouter(prefix="/api", tags=["robot"])
+
+
+class SubmitIn(BaseModel):
+    start: int = Field(0, ge=0)
+    stop: int = Field(description="one past the last statement to send")
+
+
+class SkipIn(BaseModel):
+    number: int | None = Field(None, ge=1, description="robot number; default the one running")
+
+
+@router.post("/submit", response_model=SentListView)
+def submit(body: SubmitIn, session: SessionDep, client: ClientDep) -> SentListView:
+    """Send statements[start:stop]; they leave the program and join the sent list."""
+    return session.submit(body.start, body.stop, client=client)
+
+
+@router.get("/sent", response_model=SentListView)
+def sent(session: SessionDep) -> SentListView:
+    return session.sent_view()
+
+
+@router.post("/robot/stop", response_model=LinkView)
+def stop(session: SessionDep, client: ClientDep) -> LinkView:
+    """STOP (anyone may press it)."""
+    return session.stop(client=client)
+
+
+@router.post("/robot/resume", response_model=LinkView)
+def resume(session: SessionDep, client: ClientDep) -> LinkView:
+    return session.resume(client=client)
+
+
+@router.post("/robot/skip", response_model=LinkView)
+def skip(session: SessionDep, client: ClientDep, body: SkipIn | None = None) -> LinkView:
+    return session.skip((body or SkipIn()).number, client=client)
+
+
+@router.post("/robot/abort", response_model=LinkView)
+def abort(session: SessionDep, client: ClientDep) -> LinkView:
+    return session.abort(client=client)
+
+
+@router.get("/link", response_model=LinkView)
+def link(session: SessionDep) -> LinkView:
+    return session.link_view()
+
+
+@router.get("/remote", response_model=RemoteArmView)
+def remote(session: SessionDep) -> RemoteArmView:
+    view = session.remote_view()
+    if view is None:
+        raise HTTPException(404, "no telemetry from the robot yet")
+    return view
+
+
+@router.get("/predicted", response_model=PredictedPathView)
+def predicted(session: SessionDep) -> PredictedPathView:
+    return session.predicted_view()
+
+
+@router.get("/divergence", response_model=DivergenceView)
+def divergence(session: SessionDep) -> DivergenceView:
+    return session.divergence_view()
+
+
+@router.post("/resync", response_model=SessionSnapshot)
+def resync(session: SessionDep, client: ClientDep) -> SessionSnapshot:
+    """Re-sync the virtual arm and held object from telemetry; the program starts there."""
+    return session.resync(client=client)

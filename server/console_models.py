@@ -1,0 +1,353 @@
+"""Typed views and events of the console session (what the web page and API clients see).
+
+Why a module of its own: the session (``server.session``) produces these, the HTTP API
+(``server.api``) returns them, the WebSocket ``/api/events`` streams them, and the viser panels
+(``webui``) read them; one definition each keeps the four in step. Every value is SI (rad, m, s)
+unless the field name says otherwise (``_deg``, ``_mm``). Times are seconds on the console's
+clock: ``*_at`` fields are Unix wall-clock seconds (for display), ``*_s`` are durations.
+
+Events are a discriminated union on ``type`` (:data:`SessionEvent`); a listener registered with
+``Session.subscribe_events`` receives each one after the session's lock is released.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from shared.errors import TeleprogError
+from shared.language.statements import Statement
+from shared.program.rules import Refusal
+
+
+class _View(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
+
+# ----------------------------------------------------------------------------------- errors
+
+
+class ConflictError(TeleprogError):
+    """The action is well-formed but the session's state does not allow it now (HTTP 409):
+    another client holds control, a preview is running, the regime forbids it, ..."""
+
+
+class RefusedByRule(ConflictError):
+    """An editor operation refused by a rule of thesis §4.3.6 (HTTP 409); ``refusal`` names it."""
+
+    def __init__(self, refusal: Refusal) -> None:
+        self.refusal = refusal
+        super().__init__(str(refusal))
+
+
+class NotConnectedError(ConflictError):
+    """An action that needs the robot, while the console has no robot configured (HTTP 409)."""
+
+
+# ----------------------------------------------------------------------------------- enums
+
+
+class Regime(str, Enum):
+    """Segmented composite control (§4.2.1): how statements reach the robot."""
+
+    FREE = "free"  # online: generated statements stream to the robot as they are made
+    QUASI = "quasi"  # offline: program, preview, confirm, send
+    OPERATION = "operation"  # single step: one statement at a time, force mode, strict UNTIL
+
+
+class DisplayMode(str, Enum):
+    """Display modes of §4.3.7."""
+
+    TELEPROGRAMMING = "teleprogramming"  # the operator drives the virtual arm
+    TASK_PREVIEW = "task_preview"  # the simulator plays statements on the virtual arm
+    TELEPRESENCE = "telepresence"  # the remote scene rebuilt from telemetry
+
+
+class SentStatus(str, Enum):
+    """Status of a submitted statement; the last five are final."""
+
+    SENDING = "sending"  # handed to the link, the robot has not answered yet
+    RECEIVED = "received"
+    RUNNING = "running"
+    DONE = "done"
+    FAILED = "failed"
+    SKIPPED = "skipped"
+    ABORTED = "aborted"
+    REJECTED = "rejected"  # the robot refused the whole communication
+
+
+FINAL_SENT = frozenset({SentStatus.DONE, SentStatus.FAILED, SentStatus.SKIPPED, SentStatus.ABORTED, SentStatus.REJECTED})
+
+
+# ----------------------------------------------------------------------------------- views
+
+
+class ArmView(_View):
+    """The virtual arm (what the operator commands)."""
+
+    q: list[float] = Field(description="joint vector, rad")
+    q_deg: list[float]
+    world_T_tcp: list[list[float]] = Field(description="tool point pose in the world, 4x4, m")
+    tool_xyz_mm: list[float]
+    tool_rpy_deg: list[float]
+    blocked: str | None = Field(None, description="why the last jog stopped, if it did")
+    message: str = ""
+    version: int
+    held: str | None = Field(None, description="object the virtual gripper holds")
+    object_poses: dict[str, list[list[float]]] = Field(
+        default_factory=dict, description="world_T_object of objects moved away from the cell file"
+    )
+
+
+class RefusalView(_View):
+    rule: str = Field(description="stable rule id, e.g. 'insert.action-at-end'")
+    message: str
+
+
+class StatementView(_View):
+    index: int = Field(description="0-based place in the program")
+    kind: str = Field(description="MOVE, DRIVE, ..., or EMPTY for the trailing empty statement")
+    text: str = Field(description="the statement's text form (mm, deg)")
+    statement: Statement | None = Field(None, description="JSON form (SI); None for the empty statement")
+
+
+class ProgramView(_View):
+    """The program being edited (§4.3.6) and the generator's switch."""
+
+    entries: list[StatementView] = Field(description="real statements then the trailing empty one")
+    selected: int
+    empty_index: int
+    preview: tuple[int, int] | None = Field(None, description="range being previewed (start, stop)")
+    can_undo: bool
+    can_redo: bool
+    undo_label: str | None = None
+    redo_label: str | None = None
+    auto_generate: bool
+    start_q: list[float] = Field(description="where the program starts (rad): the predicted end of what was sent")
+    start_source: Literal["model", "predicted", "telemetry"] = Field(
+        description="model: the cell's home; predicted: end of submitted statements; telemetry: re-synced"
+    )
+    confirmed: tuple[int, int] | None = Field(
+        None, description="range last previewed to its end with no warning (quasi regime's confirm)"
+    )
+
+
+class PreviewWarning(_View):
+    t: float = Field(description="preview time, s from the range's start")
+    index: int = Field(description="program index of the statement playing")
+    kind: Literal["collision", "joint_limit", "plan"]
+    message: str
+    bodies: tuple[str, str] | None = None
+
+
+class PreviewView(_View):
+    """The preview player (§4.3.7 task preview). ``q`` is where the virtual arm is drawn."""
+
+    active: bool = False
+    start: int = 0
+    stop: int = 0
+    playing: bool = False
+    t: float = 0.0
+    duration: float = 0.0
+    rate: float = 1.0
+    current: int | None = Field(None, description="program index of the statement at t")
+    q: list[float] | None = None
+    warnings: list[PreviewWarning] = Field(default_factory=list)
+    colliding_now: bool = False
+    triangles: dict[str, list[int]] = Field(default_factory=dict, description="interfering triangles at t, per body")
+    refusal: str | None = Field(None, description="why planning stopped before the range's end")
+
+
+class SentView(_View):
+    id: int = Field(description="console-local id, from 1")
+    number: int | None = Field(None, description="the robot's statement number, once it answered")
+    text: str
+    statement: Statement
+    status: SentStatus
+    reason: str | None = None
+    submitted_at: float
+    answered_at: float | None = None
+    started_at: float | None = None
+    finished_at: float | None = None
+    run_s: float | None = Field(None, description="running -> final, on the console's clock")
+
+
+class SentListView(_View):
+    items: list[SentView]
+    pending: int = Field(description="how many are not final yet")
+
+
+class LinkView(_View):
+    configured: bool = Field(description="whether the console has a robot URL at all")
+    url: str | None = None
+    connected: bool = False
+    delay_s: float | None = Field(None, description="measured one-way delay (half a round trip)")
+    round_trip_s: float | None = None
+    telemetry_received_ago_s: float | None = Field(None, description="since the last frame arrived here")
+    telemetry_age_s: float | None = Field(None, description="age of the state the last frame shows (adds the delay)")
+    reconnects: int = 0
+    robot_state: str | None = Field(None, description="idle, running, stopped, fault, disconnected")
+    recovery_pending: list[str] = Field(default_factory=list, description="recovery commands not acknowledged yet")
+
+
+class RemoteArmView(_View):
+    """The remote arm as the newest telemetry shows it (drawn as a ghost)."""
+
+    q: list[float]
+    world_T_tcp: list[list[float]]
+    age_s: float | None
+    state: str
+    statement: int = Field(description="number of the statement running, 0 when none")
+    gripper: float
+    force_n: list[float]
+    held: str | None = Field(None, description="object the robot holds (from its finished grasp/release tasks)")
+    object_poses: dict[str, list[list[float]]] = Field(
+        default_factory=dict, description="world_T_object of objects the robot's state moves (the held one follows its tool)"
+    )
+
+
+class PredictedPathView(_View):
+    """Where the submitted-not-done statements will take the arm (tool points in the world)."""
+
+    points: list[list[float]] = Field(default_factory=list, description="world tool points, m")
+    numbers: list[int] = Field(default_factory=list, description="robot numbers of the statements it covers")
+    end_q: list[float] | None = None
+
+
+class CollisionView(_View):
+    """Collision report and control zone of the virtual arm (or of the preview pose)."""
+
+    colliding: bool
+    pairs: list[tuple[str, str]] = Field(default_factory=list)
+    triangles: dict[str, list[int]] = Field(default_factory=dict, description="interfering triangle ids per body")
+    min_distance: float | None = None
+    nearest: tuple[str, str] | None = None
+    zone: Regime = Field(description="control zone from tool-object distances")
+    zone_object: str | None = None
+    zone_distance: float | None = None
+    joint_limit: str | None = Field(None, description="a joint at or past its range")
+
+
+class RegimeView(_View):
+    regime: Regime
+    zone: Regime
+    override: Regime | None = None
+
+
+class DivergenceView(_View):
+    diverged: bool = False
+    joint_error: float = Field(0.0, description="largest joint difference, rad")
+    tool_error: float = Field(0.0, description="tool point distance, m")
+    threshold_joint: float
+    threshold_tool: float
+    checked: bool = Field(False, description="the robot was at rest with nothing pending when compared")
+    message: str = ""
+
+
+class ControlView(_View):
+    holder: str | None = None
+    since: float | None = None
+
+
+class SessionSnapshot(_View):
+    """Everything at once (``GET /api/session``)."""
+
+    cell: str
+    robot: str
+    dof: int
+    arm: ArmView
+    program: ProgramView
+    preview: PreviewView
+    sent: SentListView
+    link: LinkView
+    remote: RemoteArmView | None
+    predicted: PredictedPathView
+    collision: CollisionView
+    regime: RegimeView
+    display: DisplayMode
+    divergence: DivergenceView
+    control: ControlView
+
+
+# ----------------------------------------------------------------------------------- events
+
+
+class ArmChanged(_View):
+    type: Literal["arm"] = "arm"
+    arm: ArmView
+
+
+class ProgramChanged(_View):
+    type: Literal["program"] = "program"
+    program: ProgramView
+
+
+class PreviewChanged(_View):
+    type: Literal["preview"] = "preview"
+    preview: PreviewView
+
+
+class SentChanged(_View):
+    type: Literal["sent"] = "sent"
+    sent: SentListView
+
+
+class LinkChanged(_View):
+    type: Literal["link"] = "link"
+    link: LinkView
+
+
+class RemoteArmChanged(_View):
+    type: Literal["remote"] = "remote"
+    remote: RemoteArmView
+
+
+class PredictedPathChanged(_View):
+    type: Literal["predicted"] = "predicted"
+    predicted: PredictedPathView
+
+
+class CollisionChanged(_View):
+    type: Literal["collision"] = "collision"
+    collision: CollisionView
+
+
+class RegimeChanged(_View):
+    type: Literal["regime"] = "regime"
+    regime: RegimeView
+
+
+class DisplayModeChanged(_View):
+    type: Literal["display"] = "display"
+    display: DisplayMode
+
+
+class DivergenceChanged(_View):
+    type: Literal["divergence"] = "divergence"
+    divergence: DivergenceView
+
+
+class ControlChanged(_View):
+    type: Literal["control"] = "control"
+    control: ControlView
+
+
+class Notice(_View):
+    """A sentence for the operator: a refused operation, a rejected communication, a warning."""
+
+    type: Literal["notice"] = "notice"
+    level: Literal["info", "warning", "error"]
+    message: str
+    rule: str | None = None
+
+
+SessionEvent = Annotated[
+    Union[
+        ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
+        PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
+        ControlChanged, Notice,
+    ],
+    Field(discriminator="type"),
+]

@@ -1,0 +1,127 @@
+"""The processes behind ``teleprog up``: the telerobot and the delayed link as child processes.
+
+Why children and not threads: the robot and the link are separate services in the product
+(thesis §4.4: the console and the telerobot talk only over the delayed channels), and running
+them as the very commands a user would type keeps ``teleprog up`` honest. Each child is started
+with ``--json`` on a configured port or one chosen free; its first stdout line says where it
+listens. Children get SIGTERM when the console stops (and, on Linux, when the console dies:
+``PR_SET_PDEATHSIG``), so nothing is left running.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from shared.errors import InputError
+
+log = logging.getLogger(__name__)
+
+PROJECT_DIR = Path(__file__).resolve().parent.parent
+
+
+def _die_with_parent() -> None:  # runs in the child before exec
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:  # noqa: BLE001 - not Linux: the console's finally still stops the child
+        pass
+    os.setsid()  # Ctrl-C reaches the console only; it stops the children in order
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A port the OS calls free now (another process could take it before the child binds it;
+    the child then fails with a clear error)."""
+    with socket.socket() as sock:
+        sock.bind((host, 0))
+        return int(sock.getsockname()[1])
+
+
+@dataclass
+class Child:
+    """A started child process; ``url`` is filled once it said where it listens."""
+
+    name: str
+    proc: subprocess.Popen
+    url: str = ""
+    ready: dict = field(default_factory=dict)
+    _lines: queue.Queue = field(default_factory=queue.Queue, repr=False)
+
+    def wait_ready(self, timeout: float) -> "Child":
+        """Wait for the child's ``--json`` line; raises ``InputError`` saying why it did not come."""
+        if self.url:
+            return self
+        try:
+            line = self._lines.get(timeout=timeout)
+        except queue.Empty:
+            stop_child(self)
+            raise InputError(f"the {self.name} did not start listening within {timeout:g} s") from None
+        if line is None:
+            code = self.proc.wait()
+            raise InputError(f"the {self.name} exited with code {code} before listening (its error is above)")
+        try:
+            self.ready = json.loads(line)
+            self.url = str(self.ready["listening"])
+        except (ValueError, KeyError, TypeError):
+            stop_child(self)
+            raise InputError(f"the {self.name} printed {line.strip()!r} instead of where it listens") from None
+        return self
+
+
+def spawn_child(name: str, args: list[str]) -> Child:
+    """Start ``teleprog <args> --json`` without waiting (see ``Child.wait_ready``)."""
+    cmd = [sys.executable, "-m", "server.cli", *args, "--json"]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=None, text=True, cwd=PROJECT_DIR,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent if os.name == "posix" else None,
+    )
+    child = Child(name, proc)
+
+    def drain() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            child._lines.put(line)
+        child._lines.put(None)
+
+    threading.Thread(target=drain, name=f"{name}-stdout", daemon=True).start()
+    return child
+
+
+def start_child(name: str, args: list[str], timeout: float) -> Child:
+    """Run ``teleprog <args> --json`` and wait for the line saying where it listens."""
+    return spawn_child(name, args).wait_ready(timeout)
+
+
+def stop_child(child: Child, timeout: float = 10.0) -> None:
+    proc = child.proc
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def spawn_robot_and_link(*, cell: Path, robot_port: int, link_port: int, delay_ms: float) -> tuple[Child, Child, str]:
+    """Start the telerobot and the link relaying to it at once (the link reaches the robot only
+    when a console joins, and the console keeps reconnecting, so nobody waits for anybody);
+    returns both and the link's URL for the console. Ports 0 are chosen free here."""
+    robot_port = robot_port or free_port()
+    link_port = link_port or free_port()
+    robot = spawn_child("telerobot", ["robot", "--port", str(robot_port), "--cell", str(cell)])
+    link = spawn_child(
+        "link", ["link", "--port", str(link_port), "--robot", f"ws://127.0.0.1:{robot_port}", "--delay-ms", repr(float(delay_ms))]
+    )
+    return robot, link, f"ws://127.0.0.1:{link_port}"

@@ -1,0 +1,221 @@
+"""The whole operator console in one call: ``build_console(server, session)``.
+
+Creates the scene, the ghost and overlays, and the panels, and routes the session's typed
+events to them. Layout of the control panel (docked right): the status bar first (STOP, link,
+regime, display mode, divergence, notices: always in view), then tabs Drive, Program, Preview,
+Submit. What the 3D view shows depends on the display mode (thesis 4.3.7):
+
+* teleprogramming: the virtual arm where the operator drives it, the remote arm as a ghost
+  with its age, the predicted path of sent statements, red triangles while driving;
+* task preview: the virtual arm where the preview player stands, red triangles of that pose;
+* telepresence: the arm drawn solid where telemetry reports it and objects where the robot
+  reports them (the held one moves with the remote gripper); no ghost, no gizmo.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+import viser
+
+from server.console_models import (
+    ArmChanged,
+    ArmView,
+    CollisionChanged,
+    CollisionView,
+    DisplayMode,
+    DisplayModeChanged,
+    DivergenceChanged,
+    LinkChanged,
+    Notice,
+    PredictedPathChanged,
+    PreviewChanged,
+    PreviewView,
+    ProgramChanged,
+    RegimeChanged,
+    RemoteArmChanged,
+    RemoteArmView,
+    SentChanged,
+)
+from webui.actions import Actions
+from webui.ghost import RemoteGhost
+from webui.monitor_panel import MonitorPanel
+from webui.overlays import CollisionOverlay, PredictedPath
+from webui.panels import DrivePanel
+from webui.preview_panel import PreviewPanel
+from webui.program_panel import ProgramPanel
+from webui.scene import CellScene
+from webui.status_bar import StatusBar
+
+log = logging.getLogger(__name__)
+
+PANEL_WIDTH = 430
+CAMERA_OFFSET = (0.0, -1.1, 0.3)  # m, from the tool at start
+
+
+@dataclass
+class Console:
+    """Handles of everything ``build_console`` made (tests and the app may reach in)."""
+
+    server: viser.ViserServer
+    session: object
+    scene: CellScene
+    ghost: RemoteGhost
+    path: PredictedPath
+    collision: CollisionOverlay
+    status: StatusBar
+    drive: DrivePanel
+    program: ProgramPanel
+    preview: PreviewPanel
+    monitor: MonitorPanel
+
+    def __post_init__(self) -> None:
+        self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
+        self._mode = DisplayMode.TELEPROGRAMMING
+        self._arm: ArmView | None = None
+        self._remote: RemoteArmView | None = None
+        self._preview = PreviewView()
+        self._collision: CollisionView | None = None
+        self._link_text = ""
+
+    # -- routing ------------------------------------------------------------------------------
+    def on_event(self, event) -> None:
+        with self._lock:
+            self._route(event)
+
+    def _route(self, event) -> None:
+        if isinstance(event, ArmChanged):
+            self._arm = event.arm
+            self.drive.show_arm(event.arm)
+            self._draw_arm()
+        elif isinstance(event, CollisionChanged):
+            self._collision = event.collision
+            self.drive.show_collision(event.collision)
+            self._draw_collision()
+        elif isinstance(event, ProgramChanged):
+            self.program.show(event.program)
+            self.preview.show_program(event.program)
+            self.monitor.show_program(event.program)
+        elif isinstance(event, PreviewChanged):
+            self._preview = event.preview
+            self.preview.show(event.preview)
+            self._draw_arm()
+            self._draw_collision()
+        elif isinstance(event, SentChanged):
+            self.monitor.show(event.sent)
+        elif isinstance(event, LinkChanged):
+            self.status.show_link(event.link)
+            self._draw_ghost()  # the age grows between frames
+            self.monitor.tick()
+        elif isinstance(event, RemoteArmChanged):
+            self._remote = event.remote
+            self._draw_ghost()
+            if self._mode is DisplayMode.TELEPRESENCE:
+                self._draw_arm()
+        elif isinstance(event, PredictedPathChanged):
+            pts = np.asarray(event.predicted.points, dtype=float)
+            self.path.show(pts if len(pts) else None)
+        elif isinstance(event, RegimeChanged):
+            self.status.show_regime(event.regime)
+        elif isinstance(event, DisplayModeChanged):
+            self._mode = event.display
+            self.status.show_mode(event.display)
+            self._draw_arm()
+            self._draw_ghost()
+            self._draw_collision()
+        elif isinstance(event, DivergenceChanged):
+            self.status.show_divergence(event.divergence)
+        elif isinstance(event, Notice):
+            self.status.show_notice_event(event)
+
+    # -- drawing by display mode --------------------------------------------------------------
+    def _draw_arm(self) -> None:
+        mode = self._mode
+        if self._preview.active and self._preview.q is not None:
+            self.scene.show_arm(np.asarray(self._preview.q))
+        elif mode is DisplayMode.TELEPRESENCE and self._remote is not None:
+            self.scene.show_arm(np.asarray(self._remote.q))
+            self.scene.show_objects(self._remote_objects())
+        elif self._arm is not None:
+            self.scene.show_arm(np.asarray(self._arm.q))
+            self.scene.show_objects({k: np.asarray(v) for k, v in self._arm.object_poses.items()})
+        self.drive.gizmo.visible = mode is DisplayMode.TELEPROGRAMMING and self.drive.part.value == "Tool"
+
+    def _remote_objects(self) -> dict[str, np.ndarray]:
+        poses = getattr(self._remote, "object_poses", None) or {}
+        return {k: np.asarray(v) for k, v in poses.items()}
+
+    def _draw_ghost(self) -> None:
+        remote = self._remote
+        if remote is None or self._mode is DisplayMode.TELEPRESENCE:
+            self.ghost.hide()
+            return
+        self.ghost.show(np.asarray(remote.q), remote.age_s, remote.state)
+
+    def _draw_collision(self) -> None:
+        if self._preview.active:
+            pv = self._preview
+            warning = ""
+            if pv.colliding_now:
+                warning = "preview pose collides"
+                if pv.current is not None:
+                    warning += f" (statement {pv.current + 1})"
+            self.collision.show(pv.triangles, warning)
+            return
+        view = self._collision
+        if view is None or self._mode is DisplayMode.TELEPRESENCE:
+            self.collision.show({}, "")
+            return
+        warning = ", ".join(f"{a} / {b}" for a, b in view.pairs[:3]) if view.colliding else ""
+        self.collision.show(view.triangles, warning)
+
+
+def build_console(server: viser.ViserServer, session) -> Console:
+    """Create the scene and every panel for ``session`` on ``server`` and keep them in step
+    with the session's events. Call once, after the session exists and before clients load."""
+    server.gui.configure_theme(show_share_button=False, control_width="large")
+    server.gui.set_panel_label("teleprog console")
+    # look at the tool from the front (-y), slightly above: world x runs left to right on screen
+    world_p_tool = np.asarray(session.arm_view().world_T_tcp)[:3, 3]
+    server.initial_camera.look_at = tuple(world_p_tool)
+    server.initial_camera.position = tuple(world_p_tool + np.array(CAMERA_OFFSET))
+    scene = CellScene(server, session.cell)
+    ghost = RemoteGhost(server, session.robot, session.cell.world_T_base)
+    path = PredictedPath(server)
+    collision = CollisionOverlay(server, scene.body_meshes, scene.body_nodes, scene.tcp_node)
+    holder: dict[str, StatusBar] = {}
+    actions = Actions(lambda level, message, rule: holder["status"].show_notice(level, message, rule))
+    status = holder["status"] = StatusBar(server, session, actions)
+    tabs = server.gui.add_tab_group()
+    with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
+        drive = DrivePanel(server, session, scene, actions)
+    with tabs.add_tab("Program", viser.Icon.LIST_NUMBERS):
+        program = ProgramPanel(server, session, actions)
+    with tabs.add_tab("Preview", viser.Icon.EYE):
+        preview = PreviewPanel(server, session, actions)
+    with tabs.add_tab("Submit", viser.Icon.SEND):
+        monitor = MonitorPanel(server, session, actions)
+    console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor)
+    # first picture from the session's current state, then follow its events
+    snap = session.snapshot()
+    for event in (
+        ArmChanged(arm=snap.arm), CollisionChanged(collision=snap.collision), ProgramChanged(program=snap.program),
+        PreviewChanged(preview=snap.preview), SentChanged(sent=snap.sent), LinkChanged(link=snap.link),
+        PredictedPathChanged(predicted=snap.predicted), RegimeChanged(regime=snap.regime),
+        DisplayModeChanged(display=snap.display), DivergenceChanged(divergence=snap.divergence),
+    ):
+        console.on_event(event)
+    if snap.remote is not None:
+        console.on_event(RemoteArmChanged(remote=snap.remote))
+    session.subscribe_events(console.on_event)
+    try:
+        server.gui.main_panel.dock_right()
+        server.gui.main_panel.set_width(PANEL_WIDTH)
+    except Exception:  # noqa: BLE001 - placement is cosmetic; never fail the console for it
+        log.exception("could not dock the control panel")
+    return console
+
+

@@ -1,0 +1,94 @@
+"""The submit-and-monitor panel (thesis 4.3.6, 4.4): submit a range of the program, then follow
+each sent statement by its robot number and status (received, running, done, failed) with its
+timing. STOP and recovery live in the status bar so they stay in view on every tab.
+"""
+
+from __future__ import annotations
+
+import time
+
+import viser
+
+from server.console_models import FINAL_SENT, ProgramView, SentListView, SentStatus, SentView
+from webui.actions import Actions
+
+STATUS_MARK = {
+    SentStatus.SENDING: "sending",
+    SentStatus.RECEIVED: "received",
+    SentStatus.RUNNING: "**running**",
+    SentStatus.DONE: "done",
+    SentStatus.FAILED: "**FAILED**",
+    SentStatus.SKIPPED: "skipped",
+    SentStatus.ABORTED: "aborted",
+    SentStatus.REJECTED: "**REJECTED**",
+}
+
+SHOWN = 14  # the newest sent statements listed; older ones stay in the API
+
+
+def sent_line(item: SentView, now: float) -> str:
+    number = f"#{item.number}" if item.number is not None else "#?"
+    timing = ""
+    if item.run_s is not None:
+        timing = f", ran {item.run_s:.1f} s"
+    elif item.started_at is not None and item.status is SentStatus.RUNNING:
+        timing = f", running {now - item.started_at:.1f} s"
+    elif item.status not in FINAL_SENT:
+        timing = f", sent {now - item.submitted_at:.1f} s ago"
+    reason = f": {item.reason}" if item.reason else ""
+    return f"{number} `{item.text}`: {STATUS_MARK[item.status]}{timing}{reason}"
+
+
+def sent_markdown(view: SentListView, now: float | None = None) -> str:
+    now = time.time() if now is None else now
+    if not view.items:
+        return "Nothing sent yet."
+    items = view.items[-SHOWN:]
+    lines = [f"{len(view.items)} sent, {view.pending} pending"]
+    if len(view.items) > SHOWN:
+        lines.append(f"(oldest {len(view.items) - SHOWN} not shown)")
+    lines += [sent_line(item, now) for item in items]
+    return "  \n".join(lines)
+
+
+class MonitorPanel:
+    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+        self.server = server
+        self.session = session
+        self.actions = actions
+        gui = server.gui
+        self.first = gui.add_number("Submit from", 1, min=1, step=1)
+        self.last = gui.add_number("Submit to", 1, min=1, step=1)
+        self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
+        self.submit.on_click(self._on_submit)
+        self.sent = gui.add_markdown("Nothing sent yet.")
+        self._range_touched = False
+        self.first.on_update(self._touched)
+        self.last.on_update(self._touched)
+
+    def _touched(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            self._range_touched = True
+
+    def _on_submit(self, _event: viser.GuiEvent) -> None:
+        start, stop = int(self.first.value) - 1, int(self.last.value)
+        self._range_touched = False  # the program shrinks: the next default is all that is left
+        self.actions.run("submit", lambda: self.session.submit(start, stop))
+
+    def show_program(self, view: ProgramView) -> None:
+        n = max(1, view.empty_index)
+        self.first.max = n
+        self.last.max = n
+        if not self._range_touched or self.last.value > n:
+            self.first.value = 1
+            self.last.value = n
+
+    def show(self, view: SentListView) -> None:
+        self._view = view
+        self.sent.content = sent_markdown(view)
+
+    def tick(self) -> None:
+        """Refresh the running times while something is not final (called with link updates)."""
+        view = getattr(self, "_view", None)
+        if view is not None and view.pending:
+            self.sent.content = sent_markdown(view)

@@ -1,0 +1,103 @@
+"""The preview panel (thesis 4.3.6-4.3.7, task preview): choose a range of statements, then
+play, pause, step and scrub it on the virtual arm; collision and joint-limit warnings listed.
+
+The session plays the range with the telerobot's own interpreter and planner and reports where
+the arm is at each moment; the panel only sends the operator's choices and shows the result.
+The program is not changed; while a preview runs the editor allows only selection.
+"""
+
+from __future__ import annotations
+
+import viser
+
+from server.console_models import PreviewView, ProgramView
+from webui.actions import Actions
+
+
+def warnings_markdown(view: PreviewView) -> str:
+    if not view.active:
+        return "No preview running."
+    lines = [f"Statements {view.start + 1}-{view.stop}: t = {view.t:.2f} / {view.duration:.2f} s"
+             + (" (playing)" if view.playing else " (paused)")]
+    if view.current is not None:
+        lines.append(f"Playing statement {view.current + 1}")
+    if view.colliding_now:
+        lines.append("**COLLISION at this moment**")
+    if view.refusal:
+        lines.append(f"**Planning stopped:** {view.refusal}")
+    for w in view.warnings[:8]:
+        lines.append(f"**{w.kind.replace('_', ' ')}** at {w.t:.2f} s (statement {w.index + 1}): {w.message}")
+    if len(view.warnings) > 8:
+        lines.append(f"... and {len(view.warnings) - 8} more warnings")
+    if not view.warnings and not view.refusal:
+        lines.append("No warnings.")
+    return "  \n".join(lines)
+
+
+class PreviewPanel:
+    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+        self.server = server
+        self.session = session
+        self.actions = actions
+        gui = server.gui
+        self.first = gui.add_number("From statement", 1, min=1, step=1)
+        self.last = gui.add_number("To statement", 1, min=1, step=1)
+        self.start = gui.add_button("Start preview", icon=viser.Icon.EYE)
+        self.start.on_click(self._on_start)
+        self.controls = gui.add_button_group("Player", ("Play", "Pause", "Step", "End"))
+        self.controls.on_click(self._on_control)
+        self.time = gui.add_slider("Preview time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0, disabled=True)
+        self.time.on_update(self._on_scrub)
+        self.report = gui.add_markdown("No preview running.")
+        self._setting = False
+        self._range_touched = False
+        self.first.on_update(self._touched)
+        self.last.on_update(self._touched)
+
+    def _touched(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            self._range_touched = True
+
+    # -- clicks -------------------------------------------------------------------------------
+    def _on_start(self, _event: viser.GuiEvent) -> None:
+        start, stop = int(self.first.value) - 1, int(self.last.value)
+        self.actions.run("preview", lambda: self.session.begin_preview(start, stop))
+
+    def _on_control(self, event: viser.GuiEvent) -> None:
+        choice = event.target.value
+        call = {
+            "Play": self.session.play,
+            "Pause": self.session.pause,
+            "Step": self.session.step,
+            "End": self.session.end_preview,
+        }[choice]
+        self.actions.run(f"preview {choice.lower()}", call)
+
+    def _on_scrub(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
+            return
+        t = float(self.time.value)
+        self.actions.run("preview scrub", lambda: self.session.seek(t))
+
+    # -- session events -----------------------------------------------------------------------
+    def show_program(self, view: ProgramView) -> None:
+        """Keep the range inside the program; by default it covers every real statement."""
+        n = max(1, view.empty_index)
+        self.first.max = n
+        self.last.max = n
+        if not self._range_touched or self.last.value > n:
+            self.first.value = min(int(self.first.value), n) if self._range_touched else 1
+            self.last.value = n
+
+    def show(self, view: PreviewView) -> None:
+        self.report.content = warnings_markdown(view)
+        self._setting = True
+        try:
+            self.time.disabled = not view.active
+            if view.active:
+                top = max(view.duration, 0.01)
+                if abs(self.time.max - top) > 1e-9:
+                    self.time.max = top
+                self.time.value = min(round(view.t, 2), top)
+        finally:
+            self._setting = False

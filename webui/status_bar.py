@@ -1,0 +1,145 @@
+"""The top of the control panel, always in view: STOP, the link, the regime, the display mode,
+a divergence warning with its re-sync, and the last notice (a refused operation names its rule).
+
+Why at the top and outside any tab or folder: over a delayed link the operator must be able to
+stop the robot with one click whatever panel is open, and must always know how old the picture
+of the robot is (thesis 4.4: the delay only hurts when recovering, so recovery is never hidden).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import viser
+
+from server.console_models import (
+    DisplayMode,
+    DivergenceView,
+    LinkView,
+    Notice,
+    Regime,
+    RegimeView,
+)
+from webui.actions import Actions
+
+log = logging.getLogger(__name__)
+
+AUTO = "auto (by zone)"
+REGIME_LABELS = {Regime.FREE: "free motion (online)", Regime.QUASI: "quasi-operation (preview, confirm)",
+                 Regime.OPERATION: "operation (single step)"}
+MODE_LABELS = {DisplayMode.TELEPROGRAMMING: "teleprogramming", DisplayMode.TASK_PREVIEW: "task preview",
+               DisplayMode.TELEPRESENCE: "telepresence"}
+
+
+def _seconds(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f} s"
+
+
+def link_text(link: LinkView) -> str:
+    """One line the operator reads: connected or not, measured delay, age of the telemetry."""
+    if not link.configured:
+        return "Link: **no robot configured** (console alone)"
+    state = "connected" if link.connected else "**NOT CONNECTED**"
+    parts = [f"Link: {state}"]
+    if link.delay_s is not None:
+        parts.append(f"delay {link.delay_s * 1e3:.0f} ms")
+    parts.append(f"telemetry {_seconds(link.telemetry_age_s)} old")
+    if link.robot_state:
+        parts.append(f"robot **{link.robot_state}**")
+    if link.recovery_pending:
+        parts.append("waiting for " + ", ".join(link.recovery_pending))
+    return " · ".join(parts)
+
+
+def regime_text(view: RegimeView) -> str:
+    how = "operator override" if view.override is not None else "by zone"
+    return f"Regime: **{REGIME_LABELS[view.regime]}** ({how}); zone: {view.zone.value}"
+
+
+class StatusBar:
+    """STOP and recovery, link, regime and mode selectors, divergence, notices."""
+
+    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+        self.server = server
+        self.session = session
+        self.actions = actions
+        gui = server.gui
+        self.stop = gui.add_button("STOP", color="red", icon=viser.Icon.PLAYER_STOP,
+                                   hint="stop the robot now (it waits for resume, skip or abort)")
+        self.stop.on_click(lambda _: self.actions.run("stop", self.session.stop))
+        self.recovery = gui.add_button_group("Recovery", ("Resume", "Skip", "Abort"))
+        self.recovery.on_click(self._on_recovery)
+        self.link = gui.add_markdown("Link: -")
+        self.regime_line = gui.add_markdown("Regime: -")
+        self.regime = gui.add_dropdown("Regime", [AUTO] + [r.value for r in Regime], initial_value=AUTO)
+        self.regime.on_update(self._on_regime)
+        self.mode = gui.add_dropdown("Display", [m.value for m in DisplayMode],
+                                     initial_value=DisplayMode.TELEPROGRAMMING.value)
+        self.mode.on_update(self._on_mode)
+        self.divergence = gui.add_markdown("", visible=False)
+        self.resync = gui.add_button("Re-sync from robot", color="orange", visible=False,
+                                     hint="put the virtual arm and moved objects where the robot reports them")
+        self.resync.on_click(lambda _: self.actions.run("re-sync", self.session.resync))
+        self.notice = gui.add_markdown("")
+        self._setting = False  # True while we write a selector ourselves (no echo to the session)
+
+    # -- clicks -------------------------------------------------------------------------------
+    def _on_recovery(self, event: viser.GuiEvent) -> None:
+        choice = event.target.value
+        call = {"Resume": self.session.resume, "Skip": self.session.skip, "Abort": self.session.abort}[choice]
+        self.actions.run(choice.lower(), call)
+
+    def _on_regime(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
+            return
+        value = self.regime.value
+        override = None if value == AUTO else Regime(value)
+        self.actions.run("regime override", lambda: self.session.set_regime_override(override))
+
+    def _on_mode(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
+            return
+        mode = DisplayMode(self.mode.value)
+        self.actions.run("display mode", lambda: self.session.set_display_mode(mode))
+
+    # -- session events -----------------------------------------------------------------------
+    def show_link(self, link: LinkView) -> None:
+        self.link.content = link_text(link)
+
+    def show_regime(self, view: RegimeView) -> None:
+        self.regime_line.content = regime_text(view)
+        wanted = AUTO if view.override is None else view.override.value
+        if self.regime.value != wanted:
+            self._setting = True
+            try:
+                self.regime.value = wanted
+            finally:
+                self._setting = False
+
+    def show_mode(self, mode: DisplayMode) -> None:
+        if self.mode.value != mode.value:
+            self._setting = True
+            try:
+                self.mode.value = mode.value
+            finally:
+                self._setting = False
+
+    def show_divergence(self, view: DivergenceView) -> None:
+        if view.diverged:
+            text = view.message or (
+                f"virtual and remote arm differ: tool {view.tool_error * 1e3:.1f} mm, "
+                f"joints {view.joint_error * 57.29577951308232:.2f} deg"
+            )
+            self.divergence.content = f"**Divergence:** {text}"
+        self.divergence.visible = view.diverged
+        self.resync.visible = view.diverged
+
+    def show_notice(self, level: str, message: str, rule: str | None = None) -> None:
+        mark = {"error": "Refused" if rule else "Error", "warning": "Warning", "info": "Note"}.get(level, level)
+        text = f"**{mark}:** {message}"
+        if rule:
+            text += f" (rule `{rule}`)"
+        self.notice.content = text
+
+    def show_notice_event(self, notice: Notice) -> None:
+        self.show_notice(notice.level, notice.message, notice.rule)
