@@ -38,6 +38,8 @@ import numpy as np
 from shared.cells.cell import Cell
 from shared.errors import InputError, TeleprogError
 from shared.language.statements import (
+    ALLOWED_SPEED_UNITS,
+    SPEED_UNIT_TEXT,
     Draw,
     Drive,
     Frame,
@@ -59,15 +61,6 @@ from shared.spatial import invert, rpy_to_matrix
 log = logging.getLogger(__name__)
 
 RULES = ("values", "joints", "limits", "reach", "frame", "units", "names", "program")
-
-_SPEED_TEXT = {SpeedUnit.FRACTION: "%", SpeedUnit.M_PER_S: "mm/s", SpeedUnit.RAD_PER_S: "deg/s"}
-_ALLOWED_SPEEDS = {
-    "MOVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "DRIVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "DRAW": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S),
-    "ROTATE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "MOVES": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S, SpeedUnit.RAD_PER_S),
-}
 
 
 @dataclass(frozen=True)
@@ -107,7 +100,7 @@ def _mm3(p: Sequence[float]) -> str:
 
 def _speed_text(s: Speed) -> str:
     scale = {SpeedUnit.FRACTION: 100.0, SpeedUnit.M_PER_S: 1e3, SpeedUnit.RAD_PER_S: 180.0 / math.pi}[s.unit]
-    return f"{s.value * scale:g} {_SPEED_TEXT[s.unit]}"
+    return f"{s.value * scale:g} {SPEED_UNIT_TEXT[s.unit]}"
 
 
 def _non_finite(st: Statement) -> str:
@@ -179,12 +172,12 @@ class _Checker:
         own = getattr(st, "speed", None)
         if own is None:
             return
-        allowed = _ALLOWED_SPEEDS[st.kind]
+        allowed = ALLOWED_SPEED_UNITS[st.kind]
         if own.unit not in allowed:
             self.add(
                 index, "units",
                 f"{st.kind} cannot take WITH SPEED {_speed_text(own)}: it takes "
-                + " or ".join(_SPEED_TEXT[u] for u in allowed),
+                + " or ".join(SPEED_UNIT_TEXT[u] for u in allowed),
             )
         elif own.unit is SpeedUnit.FRACTION and own.value > 1.0:
             self.add(index, "units", f"WITH SPEED {_speed_text(own)} is above 100 %")

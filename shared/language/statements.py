@@ -57,6 +57,20 @@ class SpeedUnit(str, Enum):
     RAD_PER_S = "rad/s"  # text: deg/s
 
 
+SPEED_UNIT_TEXT: dict[SpeedUnit, str] = {SpeedUnit.FRACTION: "%", SpeedUnit.M_PER_S: "mm/s", SpeedUnit.RAD_PER_S: "deg/s"}
+"""How each speed unit is written in the text form."""
+
+ALLOWED_SPEED_UNITS: dict[str, tuple[SpeedUnit, ...]] = {
+    "MOVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
+    "DRIVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
+    "DRAW": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S),
+    "ROTATE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
+    "MOVES": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S, SpeedUnit.RAD_PER_S),
+}
+"""Speed units each action takes: a joint move a fraction or deg/s, a line mm/s, a rotation
+deg/s, a full pose any (one table for the checks and the planner)."""
+
+
 class Mode(str, Enum):
     POSITION = "POSITION"
     FORCE = "FORCE"

@@ -18,7 +18,7 @@ Speeds: ``SPEED`` sets the speed of the following actions; ``WITH SPEED`` replac
 action. A fraction scales every velocity limit (joints, tool line, tool rotation); an absolute
 speed (m/s for the tool point on DRAW/MOVES, rad/s for the tool's rotation on ROTATE/MOVES or for
 every joint on MOVE/DRIVE) caps the motion at that value and the robot's limits, whichever is
-lower; a unit an action cannot take (``ALLOWED_SPEED_UNITS``, the table the checks use) is
+lower; a unit an action cannot take (``shared.language.statements.ALLOWED_SPEED_UNITS``, the table the checks use) is
 refused. Accelerations are always the robot's limits.
 """
 
@@ -35,6 +35,8 @@ from shared.cells.cell import Cell, Feature
 from shared.collision.interference import InterferenceZones, PathDetour, PathRefused
 from shared.errors import InputError
 from shared.language.statements import (
+    ALLOWED_SPEED_UNITS,
+    SPEED_UNIT_TEXT,
     Draw,
     Drive,
     Event,
@@ -65,16 +67,6 @@ log = logging.getLogger(__name__)
 DEFAULT_SPEED = Speed(value=0.5, unit=SpeedUnit.FRACTION)
 #: a path shorter than this (rad of joint, m of tool, rad of tool rotation) is no motion
 STILL = 1e-12
-#: speed units each action takes (the same table as ``shared.language.checks``): a joint move
-#: takes a fraction or deg/s, a line mm/s, a rotation deg/s, a full pose either
-ALLOWED_SPEED_UNITS: dict[str, tuple[SpeedUnit, ...]] = {
-    "MOVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "DRIVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "DRAW": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S),
-    "ROTATE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
-    "MOVES": (SpeedUnit.FRACTION, SpeedUnit.M_PER_S, SpeedUnit.RAD_PER_S),
-}
-_UNIT_TEXT = {SpeedUnit.FRACTION: "%", SpeedUnit.M_PER_S: "mm/s", SpeedUnit.RAD_PER_S: "deg/s"}
 
 
 @dataclass(frozen=True)
@@ -220,8 +212,8 @@ class Interpreter:
         speed = st.speed if st.speed is not None else state.speed
         if speed.unit not in ALLOWED_SPEED_UNITS[st.kind]:
             via = "WITH SPEED" if st.speed is not None else "the SPEED setting"
-            takes = " or ".join(_UNIT_TEXT[u] for u in ALLOWED_SPEED_UNITS[st.kind])
-            raise PlanRefused(RefusalReason.INVALID, f"{st.kind} cannot take {via} in {_UNIT_TEXT[speed.unit]}; it takes {takes}")
+            takes = " or ".join(SPEED_UNIT_TEXT[u] for u in ALLOWED_SPEED_UNITS[st.kind])
+            raise PlanRefused(RefusalReason.INVALID, f"{st.kind} cannot take {via} in {SPEED_UNIT_TEXT[speed.unit]}; it takes {takes}")
         if speed.unit is SpeedUnit.FRACTION:
             if speed.value > 1.0:
                 raise PlanRefused(RefusalReason.INVALID, f"speed {100 * speed.value:g} % is above 100 %")
