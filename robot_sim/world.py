@@ -122,6 +122,7 @@ class SimWorld:
         self._plate_half = self._half_extent_xy("plate")
         self.table_top_z = self._top_of("table", default=-np.inf)
         self._rng = rng
+        self._stuck_z: dict[str, float] = {}  # foot height where each stuck peg jammed
 
     # -- model lookups ----------------------------------------------------------------------
     def _half_extent_xy(self, name: str) -> np.ndarray:
@@ -267,8 +268,6 @@ class SimWorld:
         return Contact(force + self._noise(), touching=touching, what=what)
 
     def _stuck_foot_z(self, name: str, peg: PegState) -> float:
-        if not hasattr(self, "_stuck_z"):
-            self._stuck_z: dict[str, float] = {}
         if name not in self._stuck_z:
             self._stuck_z[name] = float(peg.world_T_peg[2, 3] - peg.half_size[2])
         return self._stuck_z[name]
