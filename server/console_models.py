@@ -251,6 +251,54 @@ class ControlView(_View):
     since: float | None = None
 
 
+class TerrainSensorsView(_View):
+    """The virtual sensors of seed 004 at the arm's pose: segment ends A -> B (world, m), whether
+    the ray from A through B meets the ground within the sensor's length."""
+
+    starts: list[list[float]] = Field(default_factory=list, description="sensor ends A, world m")
+    ends: list[list[float]] = Field(default_factory=list, description="sensor ends B, world m")
+    collides: list[bool] = Field(default_factory=list)
+
+
+class TerrainView(_View):
+    """Arm against terrain at the virtual arm's pose (terrain cells only): the exact minimum
+    distance with its witness segment, the virtual-sensor distance, and on contact the terrain
+    triangles touching the arm (world corners, for painting them red)."""
+
+    distance: float = Field(description="exact minimum distance arm-terrain, m (<= 0: contact)")
+    in_collision: bool
+    shape: str = Field("", description="arm shape holding the nearest point")
+    world_p_arm: list[float] = Field(description="witness point on the arm, m")
+    world_p_terrain: list[float] = Field(description="witness point on the terrain, m")
+    head_distance: float = Field(description="the instrument head's distance to the ground, m")
+    sensor_distance: float | None = Field(None, description="smallest sensor clearance d_RS, m (None: no reading)")
+    sensor_collision: bool = False
+    contact_corners: list[list[list[float]]] = Field(default_factory=list, description="touching triangles, world m")
+    sensors: TerrainSensorsView | None = Field(None, description="present while the sensors are shown")
+
+
+class PlacementCandidateView(_View):
+    q: list[float] = Field(description="final joint vector, rad")
+    q_deg: list[float]
+    standoff: float = Field(description="point C's height above the target along the normal, m")
+    clearance: float = Field(description="smallest distance of the arm without its head, m")
+    head_clearance: float = Field(description="the instrument head's distance, m")
+    tilt_deg: float = Field(description="angle between the head's axis and the surface normal")
+    approach: bool = Field(description="an approach pose along the normal was found")
+
+
+class PlacementView(_View):
+    """Instrument placement at a picked terrain point (seed 004): every safe configuration, best
+    first, and the statements that get there."""
+
+    world_p_target: list[float]
+    world_n_surface: list[float]
+    candidates: list[PlacementCandidateView] = Field(default_factory=list)
+    rejected: dict[str, int] = Field(default_factory=dict, description="configurations refused, by reason")
+    program: list[str] = Field(default_factory=list, description="statement text of the best placement")
+    message: str = ""
+
+
 class SessionSnapshot(_View):
     """Everything at once (``GET /api/session``)."""
 
@@ -329,6 +377,16 @@ class DivergenceChanged(_View):
     divergence: DivergenceView
 
 
+class TerrainChanged(_View):
+    type: Literal["terrain"] = "terrain"
+    terrain: TerrainView
+
+
+class PlacementChanged(_View):
+    type: Literal["placement"] = "placement"
+    placement: PlacementView | None
+
+
 class ControlChanged(_View):
     type: Literal["control"] = "control"
     control: ControlView
@@ -347,7 +405,7 @@ SessionEvent = Annotated[
     Union[
         ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
         PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
-        ControlChanged, Notice,
+        ControlChanged, TerrainChanged, PlacementChanged, Notice,
     ],
     Field(discriminator="type"),
 ]

@@ -79,7 +79,12 @@ from server.console_models import (
     SessionEvent,
     SessionSnapshot,
     StatementView,
+    TerrainChanged,
+    TerrainView,
+    PlacementChanged,
+    PlacementView,
 )
+from server.terrain_layer import TerrainLayer
 from shared.cells.cell import Cell
 from shared.collision import SceneModel, zone
 from shared.errors import InputError, TeleprogError
@@ -95,6 +100,16 @@ from shared.spatial import invert, matrix_to_rpy
 log = logging.getLogger(__name__)
 
 __all__ = ["Session", "SessionSettings", "VirtualState"]
+
+_ZONE_RANK = {"free": 0, "quasi": 1, "operation": 2}
+
+
+@dataclass(frozen=True)
+class _Pair:
+    """Two touching bodies (as the collision report names them)."""
+
+    a: str
+    b: str
 
 
 @dataclass(frozen=True)
@@ -196,7 +211,11 @@ class Session:
         self._event_listeners: list[EventListener] = []
         q0 = cell.q_home.copy()
         self._state = VirtualState(q0, world_T_tcp(self.robot, q0, self.frames))
-        self._scene = scene if scene is not None else SceneModel.from_cell(cell)
+        # a terrain cell's ground is checked by its own tree (server.terrain_layer), not the scene
+        self.terrain = TerrainLayer.for_cell(cell)
+        self._terrain_view: TerrainView | None = None
+        exclude = (TerrainLayer.NAME,) if self.terrain is not None else ()
+        self._scene = scene if scene is not None else SceneModel.from_cell(cell, exclude=exclude)
         self._scene_data = self._scene.new_data()
         self._tool_body = f"link{self.robot.dof}"
         # virtual world: held object and moved objects (world_T_object)
@@ -330,9 +349,10 @@ class Session:
                 current = min(max(current, p.start), p.stop - 1)
             report = self._scene.check(q, object_poses=self._object_poses or None, distances="none", skip=self._held_skip(), data=self._scene_data)
             tris = {b: report.interfering_triangles(b).tolist() for b in {n for pr in report.pairs for n in (pr.a, pr.b)}}
+            on_ground = bool(self.terrain.touches(q)) if self.terrain is not None else False
             return PreviewView(
                 active=True, start=p.start, stop=p.stop, playing=p.playing, t=p.t, duration=p.duration, rate=p.rate,
-                current=current, q=q.tolist(), warnings=list(p.warnings), colliding_now=report.colliding, triangles=tris,
+                current=current, q=q.tolist(), warnings=list(p.warnings), colliding_now=report.colliding or on_ground, triangles=tris,
                 refusal=p.refusal,
             )
 
@@ -518,6 +538,8 @@ class Session:
         events: list[SessionEvent] = [ArmChanged(arm=self.arm_view())]
         self._collision = self._compute_collision(self._state)
         events.append(CollisionChanged(collision=self._collision))
+        if self._terrain_view is not None:
+            events.append(TerrainChanged(terrain=self._terrain_view))
         if self._collision.zone != self._zone:
             self._zone = self._collision.zone
             events.append(RegimeChanged(regime=self.regime_view()))
@@ -534,11 +556,26 @@ class Session:
         bodies = {n for pr in report.pairs for n in (pr.a, pr.b)}
         nearest = report.nearest
         jog = state.last_jog
+        colliding, pairs = report.colliding, [(p.a, p.b) for p in report.pairs]
+        min_distance, nearest_pair = report.min_distance, (nearest.a, nearest.b) if nearest else None
+        zone_now, zone_object, zone_distance = zs.zone, zs.object, zs.distance
+        if self.terrain is not None:
+            # merge the ground: its pairs and distance, and the zone it sets for the tool
+            contact, self._terrain_view = self.terrain.evaluate(state.q)
+            ground = TerrainLayer.NAME
+            colliding = colliding or bool(contact.touching_links)
+            pairs += [(link, ground) for link in contact.touching_links]
+            if min_distance is None or contact.distance < min_distance:
+                min_distance, nearest_pair = contact.distance, (self._tool_body, ground)
+            if _ZONE_RANK[contact.zone] > _ZONE_RANK[zone_now] or (
+                _ZONE_RANK[contact.zone] == _ZONE_RANK[zone_now] and contact.head_distance < zone_distance
+            ):
+                zone_now, zone_object, zone_distance = contact.zone, ground, max(contact.head_distance, 0.0)
         return CollisionView(
-            colliding=report.colliding, pairs=[(p.a, p.b) for p in report.pairs],
+            colliding=colliding, pairs=pairs,
             triangles={b: report.interfering_triangles(b).tolist() for b in bodies},
-            min_distance=report.min_distance, nearest=(nearest.a, nearest.b) if nearest else None,
-            zone=Regime(zs.zone), zone_object=zs.object, zone_distance=None if not np.isfinite(zs.distance) else zs.distance,
+            min_distance=min_distance, nearest=nearest_pair,
+            zone=Regime(zone_now), zone_object=zone_object, zone_distance=None if not np.isfinite(zone_distance) else zone_distance,
             joint_limit=jog.message if jog is not None and jog.blocked == "joint_limit" else None,
         )
 
@@ -745,7 +782,8 @@ class Session:
                         warnings.append(PreviewWarning(t=float(t), index=idx, kind="joint_limit",
                                                        message=f"statement {idx + 1}: joint {bad[0] if bad else '?'} leaves its range at t={t:.2f} s"))
                 report = self._scene.check(q, object_poses=self._object_poses or None, distances="none", triangles=False, data=data)
-                for pair in report.pairs:
+                touching = [(link, TerrainLayer.NAME) for link in self.terrain.touches(q)] if self.terrain is not None else []
+                for pair in [*report.pairs, *(_Pair(a, b) for a, b in touching)]:
                     key = ("collision", idx, pair.a, pair.b)
                     if key not in seen:
                         seen.add(key)
@@ -895,6 +933,71 @@ class Session:
             self._display = mode
         self._emit([DisplayModeChanged(display=mode)])
         return mode
+
+    # =========================================================================== terrain (rover cells)
+    def _require_terrain(self) -> TerrainLayer:
+        if self.terrain is None:
+            raise InputError(f"cell {self.cell.name!r} has no terrain (open a rover terrain cell)")
+        return self.terrain
+
+    def terrain_view(self) -> TerrainView:
+        """The arm against the ground at the virtual arm's pose."""
+        self._require_terrain()
+        with self._lock:
+            assert self._terrain_view is not None
+            return self._terrain_view
+
+    def set_terrain_sensors(self, on: bool, *, client: str | None = None) -> TerrainView:
+        """Show or hide the virtual sensors (their segments come with every terrain view)."""
+        terrain = self._require_terrain()
+        with self._lock:
+            self._check_control(client)
+            terrain.show_sensors = bool(on)
+            _, self._terrain_view = terrain.evaluate(self._state.q)
+            view = self._terrain_view
+        self._emit([TerrainChanged(terrain=view)])
+        return view
+
+    def place_instrument(
+        self, *, world_p: Sequence[float] | None = None, ground_xy: Sequence[float] | None = None,
+        ray: tuple[Sequence[float], Sequence[float]] | None = None, client: str | None = None,
+    ) -> PlacementView:
+        """Instrument placement (seed 004) at a terrain point given as a world point, a ground
+        position (x, y) or a picking ray (origin, direction), all in metres."""
+        terrain = self._require_terrain()
+        given = [v is not None for v in (world_p, ground_xy, ray)]
+        if sum(given) != 1:
+            raise InputError("give exactly one of a target point, a ground position or a picking ray")
+        with self._lock:
+            self._check_control(client)
+        if ray is not None:
+            target = terrain.pick(np.asarray(ray[0], dtype=float), np.asarray(ray[1], dtype=float))
+        elif ground_xy is not None:
+            xy = np.asarray(ground_xy, dtype=float).reshape(-1)
+            if xy.shape != (2,):
+                raise InputError(f"a ground position has 2 coordinates (x, y), got {xy.size}")
+            target = terrain.ground_point(xy[0], xy[1])
+        else:
+            target = np.asarray(world_p, dtype=float).reshape(-1)
+            if target.shape != (3,):
+                raise InputError(f"a target point has 3 coordinates (x, y, z), got {target.size}")
+        view = terrain.place(target)
+        self._emit([PlacementChanged(placement=view)])
+        return view
+
+    def placement_view(self) -> PlacementView | None:
+        return self._require_terrain().placement
+
+    def insert_placement(self, *, client: str | None = None) -> ProgramView:
+        """Insert the current placement's statements at the selection, as one undoable step each."""
+        statements = self._require_terrain().placement_program()
+        for statement in statements:
+            self.insert(statement, client=client)
+        return self.program_view()
+
+    def goto_placement(self, index: int = 0, *, client: str | None = None) -> VirtualState:
+        """Put the virtual arm at placement candidate ``index`` (0: the best) to look at it."""
+        return self.set_q(self._require_terrain().candidate_q(index), client=client)
 
     # =========================================================================== robot link
     def attach_robot(self, client, loop: asyncio.AbstractEventLoop) -> None:

@@ -38,7 +38,9 @@ from server.console_models import (
     RegimeChanged,
     RemoteArmChanged,
     RemoteArmView,
+    PlacementChanged,
     SentChanged,
+    TerrainChanged,
 )
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
@@ -49,6 +51,8 @@ from webui.preview_panel import PreviewPanel
 from webui.program_panel import ProgramPanel
 from webui.scene import CellScene
 from webui.status_bar import StatusBar
+from webui.terrain_overlay import TerrainOverlay
+from webui.terrain_panel import TerrainPanel
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +75,8 @@ class Console:
     program: ProgramPanel
     preview: PreviewPanel
     monitor: MonitorPanel
+    terrain: TerrainPanel | None = None
+    terrain_overlay: TerrainOverlay | None = None
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
@@ -80,6 +86,7 @@ class Console:
         self._preview = PreviewView()
         self._collision: CollisionView | None = None
         self._link_text = ""
+        self._terrain_view = None
 
     # -- routing ------------------------------------------------------------------------------
     def on_event(self, event) -> None:
@@ -104,6 +111,7 @@ class Console:
             self.preview.show(event.preview)
             self._draw_arm()
             self._draw_collision()
+            self._draw_terrain()
         elif isinstance(event, SentChanged):
             self.monitor.show(event.sent)
         elif isinstance(event, LinkChanged):
@@ -126,8 +134,18 @@ class Console:
             self._draw_arm()
             self._draw_ghost()
             self._draw_collision()
+            self._draw_terrain()
         elif isinstance(event, DivergenceChanged):
             self.status.show_divergence(event.divergence)
+        elif isinstance(event, TerrainChanged):
+            self._terrain_view = event.terrain
+            if self.terrain is not None:
+                self.terrain.show(event.terrain)
+            self._draw_terrain()
+        elif isinstance(event, PlacementChanged):
+            if self.terrain is not None:
+                self.terrain.show_placement(event.placement)
+                self.terrain_overlay.show_target(event.placement)
         elif isinstance(event, Notice):
             self.status.show_notice_event(event)
 
@@ -147,6 +165,14 @@ class Console:
     def _remote_objects(self) -> dict[str, np.ndarray]:
         poses = getattr(self._remote, "object_poses", None) or {}
         return {k: np.asarray(v) for k, v in poses.items()}
+
+    def _draw_terrain(self) -> None:
+        """Clearance segment, sensors and red triangles belong to the virtual arm: hidden while
+        the arm drawn is another (a preview pose, the remote arm in telepresence)."""
+        if self.terrain_overlay is None:
+            return
+        own_arm = not self._preview.active and self._mode is not DisplayMode.TELEPRESENCE
+        self.terrain_overlay.show(self._terrain_view, visible=own_arm)
 
     def _draw_ghost(self) -> None:
         remote = self._remote
@@ -198,7 +224,13 @@ def build_console(server: viser.ViserServer, session) -> Console:
         preview = PreviewPanel(server, session, actions)
     with tabs.add_tab("Submit", viser.Icon.SEND):
         monitor = MonitorPanel(server, session, actions)
-    console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor)
+    terrain = overlay = None
+    if getattr(session, "terrain", None) is not None:
+        with tabs.add_tab("Terrain", viser.Icon.MOUNTAIN):
+            terrain = TerrainPanel(server, session, actions)
+        overlay = TerrainOverlay(server)
+    console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
+                      terrain, overlay)
     # first picture from the session's current state, then follow its events
     snap = session.snapshot()
     for event in (
@@ -210,6 +242,9 @@ def build_console(server: viser.ViserServer, session) -> Console:
         console.on_event(event)
     if snap.remote is not None:
         console.on_event(RemoteArmChanged(remote=snap.remote))
+    if terrain is not None:
+        console.on_event(TerrainChanged(terrain=session.terrain_view()))
+        console.on_event(PlacementChanged(placement=session.placement_view()))
     session.subscribe_events(console.on_event)
     try:
         server.gui.main_panel.dock_right()

@@ -231,13 +231,24 @@ class SceneModel:
 
     # -- construction --------------------------------------------------------------------------
     @classmethod
-    def from_cell(cls, cell, leaf_size: int = 1, object_pairs: Literal["none", "movable", "all"] = "movable") -> SceneModel:
-        """Build the hierarchies of the cell's robot links and objects (once)."""
+    def from_cell(
+        cls, cell, leaf_size: int = 1, object_pairs: Literal["none", "movable", "all"] = "movable",
+        exclude: Iterable[str] = (),
+    ) -> SceneModel:
+        """Build the hierarchies of the cell's robot links and objects (once). ``exclude``: names
+        of objects left out, because a dedicated checker handles them (a terrain of tens of
+        thousands of triangles has its own tree in ``shared.terrain``)."""
         if object_pairs not in ("none", "movable", "all"):
             raise InputError(f"object_pairs must be one of 'none', 'movable', 'all', got {object_pairs!r}")
+        excluded = set(exclude)
+        unknown = excluded - {o.name for o in cell.objects}
+        if unknown:
+            raise UnknownNameError("object to exclude", sorted(unknown)[0], [o.name for o in cell.objects])
         robot = cell.robot
         bodies: list[Body] = list(_link_bodies(robot, leaf_size))
         for k, obj in enumerate(cell.objects):
+            if obj.name in excluded:
+                continue
             mesh = body_mesh(obj.name, obj.shapes)
             if mesh is not None:
                 bodies.append(Body(obj.name, "object", k, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))

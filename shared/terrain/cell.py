@@ -26,6 +26,11 @@ class CellTerrain:
     checker: TerrainChecker
 
 
+def has_terrain(cell: Cell) -> bool:
+    """Whether the cell carries a terrain mesh (an object named ``terrain`` with a mesh shape)."""
+    return any(o.name == TERRAIN_OBJECT and any(s.kind == "mesh" for s in o.shapes) for o in cell.objects)
+
+
 def cell_terrain_mesh(cell: Cell) -> TerrainMesh:
     """The cell's terrain mesh in world coordinates."""
     obj = next((o for o in cell.objects if o.name == TERRAIN_OBJECT), None)

@@ -1,0 +1,115 @@
+"""The rover terrain cell in headless Chromium, mouse and keyboard only: the clearance readout,
+the virtual sensors on demand, a target picked by clicking the terrain, a placement typed as a
+ground position and its program inserted, and the arm driven onto the ground shown in red.
+
+The console runs alone (``--no-robot``): nothing here needs the telerobot. The session's state
+is read through the API to check what the page did; every action goes through the page.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from console_page import ConsolePage, wait_for
+from support import ARTIFACTS, start_console, stop_process
+
+pytestmark = pytest.mark.browser
+
+ROVER_TERRAIN = Path(__file__).resolve().parents[2] / "assets" / "cells" / "rover_terrain.toml"
+
+
+@pytest.fixture(scope="module")
+def rover_ui(tmp_path_factory, chromium):
+    running = start_console(tmp_path_factory.mktemp("rover"), "--cell", str(ROVER_TERRAIN), "--no-robot")
+    context = chromium.new_context(viewport={"width": 1400, "height": 900})
+    ui = ConsolePage(context.new_page(), running)
+    ui.open()
+    yield ui
+    context.close()
+    stop_process(running.proc)
+
+
+@pytest.fixture
+def ui(rover_ui: ConsolePage, request) -> ConsolePage:
+    yield rover_ui
+    report = getattr(request.node, "rep_call", None)
+    if report is not None and report.failed:
+        ARTIFACTS.mkdir(exist_ok=True)
+        rover_ui.page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+
+
+def terrain(ui: ConsolePage) -> dict:
+    return ui.console.api("GET", "/api/terrain").json()
+
+
+def test_clearance_and_sensors_on_demand(ui: ConsolePage) -> None:
+    ui.tab("Terrain")
+    shown = ui.text_appears(r"Exact clearance: [\d.]+ mm")
+    assert float(re.search(r"([\d.]+) mm", shown).group(1)) == pytest.approx(terrain(ui)["distance"] * 1e3, abs=0.06)
+    assert terrain(ui)["sensors"] is None
+    ui.page.get_by_label("Show virtual sensors", exact=True).click()
+    wait_for(lambda: terrain(ui)["sensors"] is not None, what="sensors shown")
+    ui.page.get_by_label("Show virtual sensors", exact=True).click()
+    wait_for(lambda: terrain(ui)["sensors"] is None, what="sensors hidden")
+
+
+def test_click_on_the_terrain_picks_the_target(ui: ConsolePage) -> None:
+    ui.tab("Terrain")
+    ui.page.get_by_label("Pick target on click", exact=True).click()
+    cx, cy = ui.canvas_center()
+    # the camera looks at the tool from the front and above: below the centre lies the ground
+    for dy in (120, 180, 240):
+        ui.page.mouse.click(cx, cy + dy)
+        try:
+            placed = wait_for(lambda: ui.console.api("GET", "/api/terrain/placement").json(), timeout=5, what="a target")
+            break
+        except AssertionError:
+            continue
+    else:
+        raise AssertionError("no click below the tool picked a terrain point")
+    ui.page.get_by_label("Pick target on click", exact=True).click()  # camera moves no longer pick
+    x, y, z = (v * 1e3 for v in placed["world_p_target"])
+    ui.text_appears(rf"Target \({x:.1f}, {y:.1f}, {z:.1f}\) mm")
+    # the picked point lies on the ground: the terrain point at its (x, y) is itself
+    below = ui.console.api("POST", "/api/terrain/placement", json={"ground_mm": [x, y]}).json()
+    np.testing.assert_allclose(below["world_p_target"], placed["world_p_target"], atol=1e-6)
+
+
+def test_typed_ground_position_placement_enters_the_program(ui: ConsolePage) -> None:
+    ui.tab("Terrain")
+    ui.set_number("Target x (mm)", 700)
+    ui.set_number("Target y (mm)", -100)
+    ui.click("Plan at ground position")
+    placed = wait_for(lambda: (p := ui.console.api("GET", "/api/terrain/placement").json())
+                      and abs(p["world_p_target"][0] - 0.7) < 1e-9 and p, what="placement at (700, -100)")
+    assert placed["candidates"], placed["message"]
+    ui.text_appears(r"Target \(700\.0, -100\.0, [\d.-]+\) mm: \d+ safe configuration")
+    before = len(ui.session()["program"]["entries"])
+    ui.click("Insert placement program")
+    program = wait_for(lambda: (e := ui.session()["program"]["entries"]) and len(e) > before and e, what="program inserted")
+    assert [e["text"] for e in program if e["kind"] != "EMPTY"][-len(placed["program"]):] == placed["program"]
+    ui.click("Show best configuration")
+    wait_for(lambda: np.allclose(ui.session()["arm"]["q"], placed["candidates"][0]["q"], atol=1e-9), what="arm at the best")
+    ui.text_appears(r"Instrument head to ground: [\d.]+ mm")
+    head = terrain(ui)["head_distance"]
+    assert 0.0 < head <= 0.030
+
+
+def test_arm_on_the_ground_shows_red_triangles_and_the_warning(ui: ConsolePage) -> None:
+    ui.tab("Drive")
+    for joint, value in (("J1", -69.5), ("J2", 3.0), ("J3", -43.0)):
+        ui.set_number(joint, value)
+        wait_for(lambda: abs(ui.session()["arm"]["q_deg"][int(joint[1]) - 1] - value) < 0.2, what=f"{joint} at {value}")
+        time.sleep(0.2)
+    view = wait_for(lambda: (t := terrain(ui))["in_collision"] and t, what="the arm on the ground")
+    assert view["contact_corners"]
+    ui.text_appears(r"COLLISION:[^\n]*link3 / terrain")
+    ui.tab("Terrain")
+    ui.text_appears(r"ARM TOUCHES THE GROUND \(link3[^)]*\); \d+ triangle\(s\) in red")
+    ARTIFACTS.mkdir(exist_ok=True)
+    ui.page.screenshot(path=str(ARTIFACTS / "rover_terrain_contact.png"))
