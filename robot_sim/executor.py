@@ -377,6 +377,8 @@ class Executor:
             tool_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_tcp[:3, :3])),
             gripper=0.0 if self.world.gripper_closed else 0.03,
             wrench=tuple(float(v) for v in self.wrench),
+            held=held[0] if (held := self.world.held_peg()) is not None else None,
+            objects=self.world.perceived_objects(),
         )
 
     @property

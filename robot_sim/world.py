@@ -26,6 +26,8 @@ from pydantic import BaseModel, Field
 
 from shared.cells.cell import Cell
 from shared.robots.model import Robot
+from shared.spatial import invert, matrix_to_rpy
+from shared.wire.messages import ObjectPose
 
 log = logging.getLogger(__name__)
 
@@ -214,6 +216,19 @@ class SimWorld:
                 hole = self.holes[peg.in_hole]
                 if peg.world_T_peg[2, 3] - peg.half_size[2] > hole.world_T_hole[2, 3]:
                     peg.in_hole = None  # pulled clear of the hole
+
+    def perceived_objects(self) -> tuple[ObjectPose, ...]:
+        """The movable objects where the robot's sensing puts them, in its base frame. The
+        simulation reports the true poses (a real cell would see them through a camera, with
+        its error): they differ from the console's model wherever the world does (holes off
+        their modelled place, a peg seated by search)."""
+        base_T_world = invert(self.cell.world_T_base)
+        out = []
+        for name, peg in self.pegs.items():
+            base_T_peg = base_T_world @ peg.world_T_peg
+            out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
+                                  base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
+        return tuple(out)
 
     # -- contact -------------------------------------------------------------------------------
     def _hole_under(self, peg: PegState, capture: float) -> Hole | None:

@@ -240,6 +240,8 @@ class DivergenceView(_View):
     diverged: bool = False
     joint_error: float = Field(0.0, description="largest joint difference, rad")
     tool_error: float = Field(0.0, description="tool point distance, m")
+    object_error: float = Field(0.0, description="largest distance between an object as reported and as modelled, m")
+    object: str | None = Field(None, description="the object that differs most (or is held on one side only)")
     threshold_joint: float
     threshold_tool: float
     checked: bool = Field(False, description="the robot was at rest with nothing pending when compared")

@@ -95,7 +95,7 @@ from shared.motion import Plan, plan_program
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import ControlMode, GeneratorSettings, ProgramGenerator, RobotSample
 from shared.robots.jog import JogFrames, JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
-from shared.spatial import invert, matrix_to_rpy
+from shared.spatial import invert, matrix_to_rpy, pose_to_transform
 
 log = logging.getLogger(__name__)
 
@@ -1165,13 +1165,30 @@ class Session:
             s.finished_at = now
             if s.started_at is None:
                 s.started_at = now
-            if status is SentStatus.DONE and isinstance(s.statement, TaskCall):
-                self._track_task_remote(s.statement, report)
+            if not self._take_robot_objects(getattr(report, "robot", None)):
+                if status is SentStatus.DONE and isinstance(s.statement, TaskCall):
+                    self._track_task_remote(s.statement, report)
             if status is not SentStatus.DONE:
                 self._start_unknown = True  # the robot did not end where predicted
         if s.status not in FINAL_SENT:
             s.status = status
         s.reason = report.reason or s.reason
+
+    def _take_robot_objects(self, snap) -> bool:
+        """Take the objects where the robot reports them (with a final status or an ack): what
+        it holds and where the others lie. False when the robot does not report objects."""
+        if snap is None or getattr(snap, "objects", None) is None:
+            return False
+        world_T_base = np.asarray(self.cell.world_T_base, dtype=float)
+        known = {o.name for o in self.cell.objects}
+        poses = {o.name: world_T_base @ pose_to_transform(o.base_p, o.base_rpy) for o in snap.objects if o.name in known}
+        self._remote_poses.update(poses)
+        held = snap.held if snap.held in poses else None
+        self._remote_held, self._remote_tcp_T_held = held, None
+        if held is not None:
+            self._remote_tcp_T_held = invert(self._remote_tcp(np.array(snap.q, dtype=float))) @ poses[held]
+            self._remote_poses.pop(held, None)  # it rides with the remote gripper
+        return True
 
     def _track_task_remote(self, call: TaskCall, report) -> None:
         """What the robot holds after a finished grasp/release, and where a released object lies."""
@@ -1286,6 +1303,8 @@ class Session:
                 self.note_round_trip(self._clock() - t0)
             with self._lock:
                 self._recovery_pending.pop(key, None)
+                if ack is not None:
+                    self._take_robot_objects(ack.robot)
             if ack is not None:
                 level = "info" if ack.applied else "warning"
                 detail = f": {ack.detail}" if ack.detail else ""
@@ -1315,18 +1334,39 @@ class Session:
             expect = self._start_q
             jerr = float(np.max(np.abs(q - expect))) if q.size == expect.size else float("inf")
             terr = float(np.linalg.norm(self._remote_tcp(q)[:3, 3] - world_T_tcp(self.robot, expect, self.frames)[:3, 3]))
-            diverged = self._start_unknown or jerr > self.settings.divergence_joint or terr > self.settings.divergence_tool
-            msg = (
-                f"the robot stopped {np.degrees(jerr):.2f} deg / {terr * 1e3:.1f} mm away from where the program expects it; re-sync to continue from there"
-                if diverged else ""
-            )
+            obj, oerr = self._object_divergence()
+            arm_off = jerr > self.settings.divergence_joint or terr > self.settings.divergence_tool
+            objects_off = oerr > self.settings.divergence_tool
+            diverged = self._start_unknown or arm_off or objects_off
+            msg = ""
+            if diverged and (arm_off or self._start_unknown or not objects_off):
+                msg = (f"the robot stopped {np.degrees(jerr):.2f} deg / {terr * 1e3:.1f} mm away from where the program "
+                       "expects it; re-sync to continue from there")
+            elif diverged:
+                where = "is held on one side only" if not np.isfinite(oerr) else f"lies {oerr * 1e3:.1f} mm from its modelled place"
+                msg = f"the robot reports that {obj} {where}; re-sync to take the objects as the robot sees them"
             view = DivergenceView(diverged=diverged, joint_error=jerr if np.isfinite(jerr) else 0.0, tool_error=terr,
+                                  object_error=oerr if np.isfinite(oerr) else 0.0, object=obj if objects_off else None,
                                   threshold_joint=self.settings.divergence_joint, threshold_tool=self.settings.divergence_tool,
                                   checked=True, message=msg)
             changed = view != self._divergence
             self._divergence = view
         if changed:
             self._emit([DivergenceChanged(divergence=view)])
+
+    def _object_divergence(self) -> tuple[str | None, float]:
+        """The object whose reported place differs most from the virtual world's (under the
+        lock): its name and distance (m; inf when one side holds it and the other does not)."""
+        if self._remote_held != self._held:
+            return self._remote_held or self._held, float("inf")
+        worst, name = 0.0, None
+        for obj, world_T_reported in self._remote_poses.items():
+            if obj == self._held:
+                continue
+            d = float(np.linalg.norm(world_T_reported[:3, 3] - self._world_T_object(obj)[:3, 3]))
+            if d > worst:
+                worst, name = d, obj
+        return name, worst
 
     def resync(self, *, client: str | None = None) -> SessionSnapshot:
         """Put the virtual arm (and the object the robot holds) where telemetry says, and start

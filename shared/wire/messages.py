@@ -98,11 +98,23 @@ class ControlMode(IntEnum):
     FORCE = 1
 
 
+class ObjectPose(_Model):
+    """Where the robot perceives a movable object (its sensing of the cell, e.g. a camera): the
+    object's frame in the robot's base frame (m; fixed-axis XYZ roll-pitch-yaw, rad)."""
+
+    name: str = Field(min_length=1, max_length=64)
+    base_p: Vec3
+    base_rpy: Vec3
+
+
 class RobotSnapshot(_Model):
     """The robot's state at one instant, as reported with a final status.
 
     ``q`` has the robot's own number of joints (rad); the tool pose is in the base frame (m, and
     fixed-axis XYZ roll-pitch-yaw in rad); ``wrench`` is force (N) then torque (N m) at the tool.
+    ``held`` names the object in the gripper; ``objects`` are the movable objects where the robot
+    perceives them (``None``: the robot does not report objects; the console then infers them from
+    the grasps and releases it ran).
     """
 
     state: RobotState
@@ -112,6 +124,8 @@ class RobotSnapshot(_Model):
     tool_rpy: Vec3
     gripper: float = Field(0.0, description="gripper opening (m)")
     wrench: Vec6 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    held: str | None = Field(None, max_length=64)
+    objects: tuple[ObjectPose, ...] | None = Field(None, max_length=256)
 
 
 # ---------------------------------------------------------------------------------------------
