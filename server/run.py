@@ -3,7 +3,8 @@
 ``teleprog up`` starts the whole product: unless told otherwise (``--robot-url``: use a running
 robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
 as child processes (``server.stack``), connects the console to the link, and stops the children
-when the console stops (Ctrl-C, SIGTERM).
+when the console stops (Ctrl-C, SIGTERM). ``--sedimentation`` serves the particle-sedimentation
+view (``server.sedimentation_app``) instead, with no robot and no link.
 """
 
 from __future__ import annotations
@@ -45,11 +46,29 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
     return ConsoleSettings().with_overrides(
         port=get("port"), host=get("host"), cell=get("cell"), delay_ms=get("delay_ms"), robot_url=get("robot_url"),
         no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
+        sedimentation=True if get("sedimentation") else None,
     )
+
+
+def run_sedimentation(settings: ConsoleSettings) -> int:
+    """``teleprog up --sedimentation``: the sedimentation view alone (no cell, no children)."""
+    from server.sedimentation_app import create_sedimentation_app
+
+    app = create_sedimentation_app(settings)  # bad starting values fail here, as one line
+    signal.signal(signal.SIGTERM, _exit_quietly)
+    print("teleprog up: particle-sedimentation view (no robot)", flush=True)
+    config = uvicorn.Config(
+        app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
+    )
+    server = _AnnouncingServer(config)
+    server.run()
+    return 0 if server.started else 1
 
 
 def run_console(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
+    if settings.sedimentation:
+        return run_sedimentation(settings)
     # uvicorn shuts down gracefully on SIGINT/SIGTERM and then re-raises the signal with the
     # handler that was in place before it; make that handler an orderly exit, so the children
     # are stopped (the finally below) instead of the process dying on the spot.

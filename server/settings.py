@@ -26,6 +26,16 @@ class ConsoleSettings(BaseSettings):
     robot_port: int = Field(0, ge=0, le=65535, description="port of the started telerobot (0: any free)")
     link_port: int = Field(0, ge=0, le=65535, description="port of the started link (0: any free)")
     child_start_timeout_s: float = Field(60.0, gt=0, description="how long to wait for robot and link to listen")
+    # the sedimentation view (``teleprog up --sedimentation``, thesis chapter 5)
+    sedimentation: bool = Field(False, description="serve the particle-sedimentation view instead of the robot console")
+    sedimentation_method: str = Field("usscd", description="broadphase method the sedimentation view starts with")
+    sedimentation_n: int = Field(2000, ge=2, description="number of bodies the sedimentation view starts with")
+    sedimentation_kind: str = Field("uniform", description="scene kind: uniform, gaussian or sediment")
+    sedimentation_speed: float = Field(0.5, ge=0.0, description="SPEED, length units per frame (sphere radius 1)")
+    sedimentation_density: float = Field(0.0005, gt=0.0, description="bodies per unit volume, N / L^3")
+    sedimentation_max_n: int = Field(200_000, ge=2, description="largest N the operator may choose")
+    sedimentation_steps_hz: float = Field(40.0, gt=0.0, description="most frames simulated per second")
+    sedimentation_draw_hz: float = Field(20.0, gt=0.0, description="most pictures sent to the page per second")
 
     def with_overrides(self, **overrides: object) -> "ConsoleSettings":
         """A copy with the given non-None values replaced (command-line flags), validated."""

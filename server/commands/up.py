@@ -1,4 +1,7 @@
-"""``teleprog up``: the whole product: telerobot, delayed link and console (web page, API, 3D scene)."""
+"""``teleprog up``: the whole product: telerobot, delayed link and console (web page, API, 3D scene).
+
+``teleprog up --sedimentation`` serves the particle-sedimentation view instead (no robot, no link).
+"""
 
 from __future__ import annotations
 
@@ -24,4 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     group = up.add_mutually_exclusive_group()
     group.add_argument("--no-robot", action="store_true", help="console only: start no robot and no link")
     group.add_argument("--robot-url", default=None, help="use a running robot or link at this ws:// URL")
+    group.add_argument(
+        "--sedimentation", action="store_true",
+        help="serve the particle-sedimentation view (many-body collision detection, thesis ch. 5); no robot, no link",
+    )
     up.set_defaults(handler=_cmd_up)
