@@ -11,6 +11,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Locator, Page
 
+import support
 from support import RunningConsole, start_console, stop_process
 
 pytestmark = pytest.mark.browser
@@ -26,14 +27,7 @@ def sedimentation(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningC
 
 
 def wait_for(predicate, timeout: float = 20.0, what: str = "condition"):
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} not met within {timeout:g} s")
-        time.sleep(0.1)
+    return support.wait_for(predicate, timeout, 0.1, what)
 
 
 def status(page: Page) -> re.Match | None:

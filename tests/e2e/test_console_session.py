@@ -16,6 +16,7 @@ import pytest
 from websockets.sync.client import connect
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
+import support
 from support import RunningConsole, start_console, stop_process
 
 DELAY_MS = "200"
@@ -41,13 +42,7 @@ def call(console: RunningConsole, method: str, path: str, body: object | None = 
 
 
 def wait_for(what: str, predicate, timeout: float = 30.0, period: float = 0.05):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period)
-    raise AssertionError(f"timed out waiting for {what}")
+    return support.wait_for(predicate, timeout, period, what)
 
 
 class EventLog:

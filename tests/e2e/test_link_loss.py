@@ -9,19 +9,13 @@ import time
 import httpx
 
 from server.stack import start_child, stop_child
-from support import start_console, stop_process
+from support import start_console, stop_process, wait_for
 
 CLIENT = {"X-Teleprog-Client": "trial"}
 
 
 def _wait(what: str, predicate, timeout: float = 40.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
+    return wait_for(predicate, timeout, 0.05, what)
 
 
 def test_cut_link_loses_nothing_and_runs_nothing_twice(tmp_path) -> None:

@@ -9,13 +9,12 @@ come from its environment (``TELEPROG_ROBOT_WORLD__*``).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
 from robot_sim.world import SimWorld, WorldSettings
 from shared.cells.loader import DEFAULT_CELL, load_cell
+import support
 from support import start_console, stop_process
 
 OFFSET = 0.004  # m: the largest xy offset of the world's holes from the model
@@ -29,13 +28,7 @@ def call(up, method: str, path: str, body: dict | None = None) -> dict:
 
 
 def wait_for(what: str, predicate, timeout: float = 30.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"{what} not seen within {timeout:g} s")
+    return support.wait_for(predicate, timeout, 0.1, what)
 
 
 @pytest.fixture
