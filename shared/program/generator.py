@@ -60,6 +60,7 @@ import numpy as np
 
 from shared.errors import InputError
 from shared.language.statements import Draw, Drive, Frame, Move, Moves, Rotate, Statement
+from shared.language.units import TextUnit, to_si
 from shared.spatial import invert, matrix_to_rpy
 
 log = logging.getLogger(__name__)
@@ -164,6 +165,12 @@ class GeneratorSettings:
     counts."""
     frame: Frame = Frame.BASE
     """Frame of the Cartesian targets of DRAW, ROTATE and MOVES."""
+    mm_decimals: int = 2
+    """Generated positions are rounded to this many decimals of a millimetre (0.01 mm: far
+    below the minimum change, and what an operator can read); the text shows exactly these."""
+    deg_decimals: int = 3
+    """Generated angles (joint targets, roll-pitch-yaw) are rounded to this many decimals of a
+    degree (0.001 deg: 0.01 mm at 0.6 m)."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -174,6 +181,10 @@ class GeneratorSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise InputError(f"generator setting {name} must be a positive number, got {value!r}")
+        for name in ("mm_decimals", "deg_decimals"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and 0 <= value <= 6):
+                raise InputError(f"generator setting {name} must be an integer 0..6, got {value!r}")
         if not (math.isfinite(self.relative_departure) and self.relative_departure >= 0):
             raise InputError(f"generator setting relative_departure must be >= 0, got {self.relative_departure!r}")
         try:
@@ -560,6 +571,10 @@ class ProgramGenerator:
             log.debug("segment %.3f-%.3f s closed (%s): %s", t_start, t_end, reason, statement.kind)
         return [] if statement is None else [statement]
 
+    def _angle_text(self, value: float) -> float:
+        """An angle (rad) rounded to the degrees the statement text shows (no negative zero)."""
+        return to_si(f"{math.degrees(float(value)):.{self.settings.deg_decimals}f}", TextUnit.DEG) + 0.0
+
     def _match(self, end: _State) -> Statement | None:
         """The statement of thesis 4.3.5 for a segment from the program state to ``end``;
         updates the program state to the statement's ideal end."""
@@ -574,8 +589,8 @@ class ProgramGenerator:
             self._anchor_q = target
             if n == 1:
                 k = int(np.flatnonzero(changed)[0])
-                return Drive(joint=k + 1, target=float(target[k]))
-            return Move(joints=tuple(float(x) for x in target))
+                return Drive(joint=k + 1, target=self._angle_text(target[k]))
+            return Move(joints=tuple(self._angle_text(x) for x in target))
         if self._anchor_p is None:  # first tool-mode state after a joint-mode run
             return None
         moved = _norm(end.p - self._anchor_p) > s.min_translation
@@ -584,8 +599,8 @@ class ProgramGenerator:
             self._anchor_p = end.p.copy()
         if turned:
             self._anchor_r = end.r.copy()
-        position = tuple(float(x) for x in self._anchor_p)
-        rpy = tuple(float(x) for x in matrix_to_rpy(self._anchor_r))
+        position = tuple(to_si(f"{x * 1e3:.{s.mm_decimals}f}", TextUnit.MM) + 0.0 for x in self._anchor_p)
+        rpy = tuple(self._angle_text(x) for x in matrix_to_rpy(self._anchor_r))
         if moved and turned:
             return Moves(position=position, rpy=rpy, frame=s.frame)
         if moved:
