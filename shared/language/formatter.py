@@ -15,6 +15,7 @@ from shared.errors import InputError
 
 from shared.language.statements import (
     DEFAULT_FRAME,
+    SPEED_TEXT_UNIT,
     Draw,
     Drive,
     Event,
@@ -24,7 +25,6 @@ from shared.language.statements import (
     SetMode,
     SetSpeed,
     Speed,
-    SpeedUnit,
     Statement,
     TaskCall,
     UntilContact,
@@ -35,11 +35,6 @@ from shared.language.units import ConversionError, TextUnit, from_si
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
-_SPEED_TEXT = {
-    SpeedUnit.FRACTION: TextUnit.PERCENT,
-    SpeedUnit.M_PER_S: TextUnit.MM_PER_S,
-    SpeedUnit.RAD_PER_S: TextUnit.DEG_PER_S,
-}
 
 
 def _tuple(values: Sequence[float], unit: TextUnit) -> str:
@@ -47,7 +42,7 @@ def _tuple(values: Sequence[float], unit: TextUnit) -> str:
 
 
 def format_speed(speed: Speed) -> str:
-    unit = _SPEED_TEXT[speed.unit]
+    unit = SPEED_TEXT_UNIT[speed.unit]
     return f"{from_si(speed.value, unit)} {unit.value}"
 
 

@@ -35,6 +35,7 @@ from pydantic import ValidationError
 from shared.errors import FileFormatError, InputError
 from shared.language.statements import (
     DEFAULT_FRAME,
+    SPEED_TEXT_UNIT,
     Draw,
     Drive,
     Event,
@@ -46,7 +47,6 @@ from shared.language.statements import (
     SetMode,
     SetSpeed,
     Speed,
-    SpeedUnit,
     Statement,
     TaskCall,
     UntilContact,
@@ -69,11 +69,7 @@ _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _JOINT = re.compile(r"[Jj]([0-9]{1,6})")
 
 STATEMENT_KEYWORDS = ("MOVE", "DRIVE", "DRAW", "ROTATE", "MOVES", "SPEED", "MODE", "EVENT", "TASK")
-_SPEED_UNITS = {
-    TextUnit.PERCENT: SpeedUnit.FRACTION,
-    TextUnit.MM_PER_S: SpeedUnit.M_PER_S,
-    TextUnit.DEG_PER_S: SpeedUnit.RAD_PER_S,
-}
+_SPEED_UNITS = {text: unit for unit, text in SPEED_TEXT_UNIT.items()}
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,8 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator
 
+from shared.language.units import TextUnit
+
 Vec3 = tuple[float, float, float]
 
 
@@ -57,8 +59,12 @@ class SpeedUnit(str, Enum):
     RAD_PER_S = "rad/s"  # text: deg/s
 
 
-SPEED_UNIT_TEXT: dict[SpeedUnit, str] = {SpeedUnit.FRACTION: "%", SpeedUnit.M_PER_S: "mm/s", SpeedUnit.RAD_PER_S: "deg/s"}
-"""How each speed unit is written in the text form."""
+SPEED_TEXT_UNIT: dict[SpeedUnit, TextUnit] = {
+    SpeedUnit.FRACTION: TextUnit.PERCENT, SpeedUnit.M_PER_S: TextUnit.MM_PER_S, SpeedUnit.RAD_PER_S: TextUnit.DEG_PER_S,
+}
+"""The text unit each speed unit is written in (the parser reads it the other way)."""
+SPEED_UNIT_TEXT: dict[SpeedUnit, str] = {k: v.value for k, v in SPEED_TEXT_UNIT.items()}
+"""How each speed unit is spelled in the text form."""
 
 ALLOWED_SPEED_UNITS: dict[str, tuple[SpeedUnit, ...]] = {
     "MOVE": (SpeedUnit.FRACTION, SpeedUnit.RAD_PER_S),
