@@ -11,6 +11,7 @@ import viser
 
 from server.console_models import FINAL_SENT, ProgramView, SentListView, SentStatus, SentView
 from webui.actions import Actions
+from webui.statement_range import StatementRange
 
 STATUS_MARK = {
     SentStatus.SENDING: "sending",
@@ -57,31 +58,17 @@ class MonitorPanel:
         self.session = session
         self.actions = actions
         gui = server.gui
-        self.first = gui.add_number("Submit from", 1, min=1, step=1)
-        self.last = gui.add_number("Submit to", 1, min=1, step=1)
+        self.range = StatementRange(gui, "Submit from", "Submit to")
         self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
         self.submit.on_click(self._on_submit)
         self.sent = gui.add_markdown("Nothing sent yet.")
-        self._range_touched = False
-        self.first.on_update(self._touched)
-        self.last.on_update(self._touched)
-
-    def _touched(self, event: viser.GuiEvent) -> None:
-        if event.client is not None:
-            self._range_touched = True
 
     def _on_submit(self, _event: viser.GuiEvent) -> None:
-        start, stop = int(self.first.value) - 1, int(self.last.value)
-        self._range_touched = False  # the program shrinks: the next default is all that is left
+        start, stop = self.range.slice(release=True)  # the program shrinks: next, all that is left
         self.actions.run("submit", lambda: self.session.submit(start, stop))
 
     def show_program(self, view: ProgramView) -> None:
-        n = max(1, view.empty_index)
-        self.first.max = n
-        self.last.max = n
-        if not self._range_touched or self.last.value > n:
-            self.first.value = 1
-            self.last.value = n
+        self.range.follow(view)
 
     def show(self, view: SentListView) -> None:
         self._view = view

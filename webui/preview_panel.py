@@ -12,6 +12,7 @@ import viser
 
 from server.console_models import PreviewView, ProgramView
 from webui.actions import Actions
+from webui.statement_range import StatementRange
 
 
 def warnings_markdown(view: PreviewView) -> str:
@@ -40,8 +41,7 @@ class PreviewPanel:
         self.session = session
         self.actions = actions
         gui = server.gui
-        self.first = gui.add_number("From statement", 1, min=1, step=1)
-        self.last = gui.add_number("To statement", 1, min=1, step=1)
+        self.range = StatementRange(gui, "From statement", "To statement")
         self.start = gui.add_button("Start preview", icon=viser.Icon.EYE)
         self.start.on_click(self._on_start)
         self.controls = gui.add_button_group("Player", ("Play", "Pause", "Step", "End"))
@@ -50,17 +50,10 @@ class PreviewPanel:
         self.time.on_update(self._on_scrub)
         self.report = gui.add_markdown("No preview running.")
         self._setting = False
-        self._range_touched = False
-        self.first.on_update(self._touched)
-        self.last.on_update(self._touched)
-
-    def _touched(self, event: viser.GuiEvent) -> None:
-        if event.client is not None:
-            self._range_touched = True
 
     # -- clicks -------------------------------------------------------------------------------
     def _on_start(self, _event: viser.GuiEvent) -> None:
-        start, stop = int(self.first.value) - 1, int(self.last.value)
+        start, stop = self.range.slice()
         self.actions.run("preview", lambda: self.session.begin_preview(start, stop))
 
     def _on_control(self, event: viser.GuiEvent) -> None:
@@ -81,13 +74,7 @@ class PreviewPanel:
 
     # -- session events -----------------------------------------------------------------------
     def show_program(self, view: ProgramView) -> None:
-        """Keep the range inside the program; by default it covers every real statement."""
-        n = max(1, view.empty_index)
-        self.first.max = n
-        self.last.max = n
-        if not self._range_touched or self.last.value > n:
-            self.first.value = min(int(self.first.value), n) if self._range_touched else 1
-            self.last.value = n
+        self.range.follow(view)
 
     def show(self, view: PreviewView) -> None:
         self.report.content = warnings_markdown(view)
