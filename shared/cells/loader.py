@@ -12,8 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from shared.cells.cell import Cell, CellObject, Feature, ZoneDistances
 from shared.errors import FileFormatError, TeleprogError
 from shared.paths import ASSETS_DIR
-from shared.robots.description import LinkShape
-from shared.robots.loader import load_robot
+from shared.robots.loader import load_robot, shape_from_spec
 from shared.spatial import pose_to_transform
 
 CELLS_DIR = ASSETS_DIR / "cells"
@@ -90,28 +89,6 @@ class _CellFile(_Strict):
     zone_overrides: dict[str, _ZoneSpec] = {}
 
 
-def _shape(spec: _ShapeSpec, where: str, path: Path, ls: float, as_: float) -> LinkShape:
-    needs = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"), "mesh": ("mesh",)}
-    for attr in needs[spec.shape]:
-        if getattr(spec, attr) is None:
-            raise FileFormatError(path, f"a {spec.shape} needs '{attr}'", f"{where}.{attr}")
-    mesh_path = ""
-    if spec.mesh is not None:
-        mesh_file = (path.parent / spec.mesh).resolve()
-        if not mesh_file.is_file():
-            raise FileFormatError(path, f"mesh file {mesh_file} does not exist", f"{where}.mesh")
-        mesh_path = str(mesh_file)
-    return LinkShape(
-        kind=spec.shape,
-        link_T_shape=pose_to_transform(np.array(spec.xyz) * ls, np.array(spec.rpy) * as_),
-        size=tuple(v * ls for v in spec.size) if spec.size else (0.0, 0.0, 0.0),
-        radius=(spec.radius or 0.0) * ls,
-        length=(spec.length or 0.0) * ls,
-        mesh_path=mesh_path,
-        scale=spec.scale,
-    )
-
-
 def load_cell(path: str | Path) -> Cell:
     """Load and validate a cell file."""
     path = Path(path)
@@ -172,7 +149,7 @@ def load_cell(path: str | Path) -> Cell:
             raise FileFormatError(path, f"object name {ospec.name!r} is used twice", f"{where}.name")
         if ospec.frame not in frames:
             raise FileFormatError(path, f"frame {ospec.frame!r} is not defined; valid: {', '.join(frames)}", f"{where}.frame")
-        shapes = tuple(_shape(s, f"{where}.shapes.{k}", path, ls, as_) for k, s in enumerate(ospec.shapes))
+        shapes = tuple(shape_from_spec(s, f"{where}.shapes.{k}", path, ls, as_) for k, s in enumerate(ospec.shapes))
         objects.append(
             CellObject(
                 name=ospec.name, world_T_object=frames[ospec.frame] @ pose(ospec), shapes=shapes,

@@ -95,6 +95,14 @@ def _shape_from_spec(spec: _ShapeSpec, index: int, path: Path, ls: float, as_: f
     where = f"geometry.{index}"
     if spec.link > dof:
         raise FileFormatError(path, f"link {spec.link} does not exist (robot has links 0..{dof})", where + ".link")
+    return shape_from_spec(spec, where, path, ls, as_, color=spec.color)
+
+
+def shape_from_spec(spec, where: str, path: Path, ls: float, as_: float, color: tuple[int, int, int] | None = None) -> LinkShape:
+    """A ``LinkShape`` (SI) from a file's shape table (``shape``, ``xyz``, ``rpy``, ``size``,
+    ``radius``, ``length``, ``mesh``, ``scale`` in the file's units ``ls``/``as_`` per unit);
+    a missing dimension or mesh file is a ``FileFormatError`` naming ``where``. Robot and cell
+    files share it."""
     needs = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"), "capsule": ("radius", "length"), "mesh": ("mesh",)}
     for attr in needs[spec.shape]:
         if getattr(spec, attr) is None:
@@ -105,6 +113,7 @@ def _shape_from_spec(spec: _ShapeSpec, index: int, path: Path, ls: float, as_: f
         if not mesh_file.is_file():
             raise FileFormatError(path, f"mesh file {mesh_file} does not exist", f"{where}.mesh")
         mesh_path = str(mesh_file)
+    extra = {} if color is None else {"color": color}
     return LinkShape(
         kind=spec.shape,
         link_T_shape=pose_to_transform(np.array(spec.xyz) * ls, np.array(spec.rpy) * as_),
@@ -113,7 +122,7 @@ def _shape_from_spec(spec: _ShapeSpec, index: int, path: Path, ls: float, as_: f
         length=(spec.length or 0.0) * ls,
         mesh_path=mesh_path,
         scale=spec.scale,
-        color=spec.color,
+        **extra,
     )
 
 
