@@ -99,3 +99,47 @@ def stop_process(proc: subprocess.Popen) -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+class ServerProcess:
+    """A ``teleprog <command>`` server as a real process on a fixed port, so a test can kill it
+    (SIGKILL: nothing said goodbye, whatever was in flight is gone) and start it again."""
+
+    def __init__(self, tmp_path: Path, command: str, *args: str, port: int | None = None, timeout: float = 60.0) -> None:
+        self.port = port or free_port()
+        self.command = command
+        self.args = args
+        self.timeout = timeout
+        self.log_path = tmp_path / f"{command}-{self.port}.log"
+        self.proc: subprocess.Popen | None = None
+
+    def start(self):
+        log = self.log_path.open("a")
+        verbose = ["-v"] if os.environ.get(f"{self.command.upper()}_VERBOSE") else []
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "server.cli", *verbose, self.command, "--port", str(self.port), *self.args],
+            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        try:
+            wait_http(f"http://127.0.0.1:{self.port}/health", self.proc, timeout=self.timeout)
+        except Exception:
+            self.kill()
+            raise RuntimeError(f"{self.command} did not start:\n{self.log_path.read_text()}") from None
+        return self
+
+    @property
+    def url(self) -> str:
+        return f"ws://127.0.0.1:{self.port}"
+
+    def health(self) -> dict:
+        return httpx.get(f"http://127.0.0.1:{self.port}/health", timeout=5).json()
+
+    def kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+    def stop(self) -> int | None:
+        if self.proc is not None:
+            stop_process(self.proc)
+        return self.proc.returncode if self.proc else None

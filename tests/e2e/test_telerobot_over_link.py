@@ -8,13 +8,8 @@ loses no statement and runs none twice, and stop overtakes a full buffer.
 from __future__ import annotations
 
 import asyncio
-import os
-import subprocess
-import sys
 import time
-from pathlib import Path
 
-import httpx
 import numpy as np
 import pytest
 
@@ -24,57 +19,21 @@ from shared.language.parser import parse_program
 from shared.language.statements import Move
 from shared.paths import ASSETS_DIR
 from shared.wire.messages import RobotState, StatementState
-from support import PROJECT_DIR, free_port, stop_process, wait_http
+from support import ServerProcess
 
 PEG_TRANSFER = parse_program((ASSETS_DIR / "programs" / "peg_transfer.tp").read_text()).statements
 CELL = load_cell(DEFAULT_CELL)
 
 
-class Proc:
-    """A ``teleprog`` server subprocess on a fixed port, so it can be killed and started again."""
-
-    def __init__(self, tmp_path: Path, name: str, *args: str, port: int | None = None) -> None:
-        self.port = port or free_port()
-        self.args = args
-        self.name = name
-        self.log_path = tmp_path / f"{name}-{self.port}.log"
-        self.proc: subprocess.Popen | None = None
-
-    def start(self) -> Proc:
-        log = self.log_path.open("a")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "server.cli", self.name, "--port", str(self.port), *self.args],
-            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
-        try:
-            wait_http(f"http://127.0.0.1:{self.port}/health", self.proc, timeout=60)
-        except Exception:
-            stop_process(self.proc)
-            raise RuntimeError(f"{self.name} did not start:\n{self.log_path.read_text()}") from None
-        return self
-
-    def kill(self) -> None:
-        if self.proc is not None:
-            self.proc.kill()
-            self.proc.wait()
-
-    def stop(self) -> None:
-        if self.proc is not None:
-            stop_process(self.proc)
-
-    def health(self) -> dict:
-        return httpx.get(f"http://127.0.0.1:{self.port}/health", timeout=5).json()
-
-
 @pytest.fixture
 def robot(tmp_path):
-    proc = Proc(tmp_path, "robot", "--seed", "3").start()
+    proc = ServerProcess(tmp_path, "robot", "--seed", "3").start()
     yield proc
     proc.stop()
 
 
 def test_peg_transfer_through_a_real_3_s_link(robot, tmp_path) -> None:
-    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "3000").start()
+    link = ServerProcess(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "3000").start()
     try:
         finals, elapsed, frame = asyncio.run(_peg_transfer(f"ws://127.0.0.1:{link.port}"))
     finally:
@@ -100,7 +59,7 @@ async def _peg_transfer(url: str):
 
 
 def test_killing_the_link_mid_program_loses_nothing_and_runs_nothing_twice(robot, tmp_path) -> None:
-    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "300").start()
+    link = ServerProcess(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "300").start()
     try:
         finals, reconnects = asyncio.run(_kill_mid_program(link))
     finally:
@@ -112,7 +71,7 @@ def test_killing_the_link_mid_program_loses_nothing_and_runs_nothing_twice(robot
     assert health["numbered"] == len(PEG_TRANSFER)  # every statement numbered (and so run) once
 
 
-async def _kill_mid_program(link: Proc):
+async def _kill_mid_program(link: ServerProcess):
     async with RobotClient(f"ws://127.0.0.1:{link.port}", reconnect_delay=0.1) as client:
         submitted = asyncio.create_task(client.submit(PEG_TRANSFER[:7], timeout=60))
         await asyncio.sleep(0.1)  # the units are inside the link
@@ -134,7 +93,7 @@ async def _kill_mid_program(link: Proc):
 
 
 def test_stop_overtakes_a_full_buffer_through_the_link(robot, tmp_path) -> None:
-    link = Proc(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "200").start()
+    link = ServerProcess(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot.port}", "--delay-ms", "200").start()
     try:
         state_after, queued, moved = asyncio.run(_stop_full_buffer(f"ws://127.0.0.1:{link.port}"))
     finally:
@@ -170,7 +129,7 @@ def test_malformed_traffic_is_rejected_and_the_robot_carries_on(robot) -> None:
     assert {r.reason.value for r in replies} >= {"bad_json", "bad_message"}
 
 
-async def _garbage(robot: Proc):
+async def _garbage(robot: ServerProcess):
     from websockets.asyncio.client import connect
 
     from shared.wire.messages import decode_message, encode_message

@@ -12,9 +12,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
-import os
-import subprocess
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,58 +22,17 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from shared.wire.messages import RobotSnapshot, RobotState, StatementState, Welcome, decode_message, encode_message
 from shared.wire.session import CommandReceiver, CommandSender
-from support import PROJECT_DIR, free_port, wait_http
+from support import ServerProcess, free_port
 
 SNAP = RobotSnapshot(state=RobotState.IDLE, q=(0.0,) * 6, base_p_tool=(0.4, 0.0, 0.3), tool_rpy=(0.0, 0.0, 0.0))
 
 
-class LinkProcess:
-    """``teleprog link`` as a real process on a fixed port (so it can be killed and restarted)."""
+class LinkProcess(ServerProcess):
+    """``teleprog link`` relaying to the robot at ``robot_port``, as a real process."""
 
     def __init__(self, robot_port: int, tmp_path: Path, *flags: str, port: int | None = None) -> None:
-        self.port = port or free_port()
+        super().__init__(tmp_path, "link", "--robot", f"ws://127.0.0.1:{robot_port}", *flags, port=port, timeout=30.0)
         self.robot_port = robot_port
-        self.flags = flags
-        self.log_path = tmp_path / f"link-{self.port}.log"
-        self.proc: subprocess.Popen | None = None
-
-    @property
-    def url(self) -> str:
-        return f"ws://127.0.0.1:{self.port}"
-
-    def start(self) -> "LinkProcess":
-        log = self.log_path.open("a")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "server.cli", *(["-v"] if os.environ.get("LINK_VERBOSE") else []), "link", "--port", str(self.port),
-             "--robot", f"ws://127.0.0.1:{self.robot_port}", *self.flags],
-            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
-        try:
-            wait_http(f"http://127.0.0.1:{self.port}/health", self.proc, timeout=30)
-        except Exception:
-            self.kill()
-            raise RuntimeError(f"link did not start:\n{self.log_path.read_text()}") from None
-        return self
-
-    def health(self) -> dict:
-        import httpx
-
-        return httpx.get(f"http://127.0.0.1:{self.port}/health", timeout=5).json()
-
-    def kill(self) -> None:
-        """SIGKILL: no goodbye on any socket, whatever is in flight inside it is gone."""
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-
-    def stop(self) -> int | None:
-        if self.proc is not None and self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                return self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.kill()
-        return self.proc.returncode if self.proc else None
 
 
 @dataclass
