@@ -29,7 +29,7 @@ def _cmd_kin_fk(args: argparse.Namespace) -> int:
 
 
 def _cmd_kin_ik(args: argparse.Namespace) -> int:
-    from shared.robots.ik import solve_ik
+    from shared.robots.ik import distinct_branches, solve_ik
     from shared.robots.loader import load_robot
     from shared.spatial import pose_to_transform
 
@@ -50,12 +50,21 @@ def _cmd_kin_ik(args: argparse.Namespace) -> int:
     if not solutions:
         limits = "" if args.ignore_limits else " within the joint ranges (try --ignore-limits)"
         raise TeleprogError(f"no inverse-kinematics solution for {robot.name!r} at that target{limits}")
-    degs = [np.degrees(s).round(6).tolist() for s in solutions]
-    if args.json:
-        print_json({"solutions": degs, "unit": "deg"})
+    if args.all_turns:
+        shown = [(s, 1) for s in solutions]
     else:
-        for i, s in enumerate(degs, start=1):
-            print(f"{i}: " + "  ".join(f"{v:9.3f}" for v in s) + "  deg")
+        shown = distinct_branches(solutions)
+    degs = [np.degrees(s).round(6).tolist() for s, _ in shown]
+    turns = [n for _, n in shown]
+    if args.json:
+        out: dict = {"solutions": degs, "unit": "deg"}
+        if not args.all_turns:
+            out["turn_variants"] = turns
+        print_json(out)
+    else:
+        for i, (s, n) in enumerate(zip(degs, turns), start=1):
+            extra = f"  (+{n - 1} whole-turn variant{'s' if n > 2 else ''})" if n > 1 else ""
+            print(f"{i}: " + "  ".join(f"{v:9.3f}" for v in s) + "  deg" + extra)
     return 0
 
 
@@ -76,5 +85,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     ik.add_argument("--rpy", type=float, nargs=3, metavar=("R", "P", "Y"), help="tool roll pitch yaw in degrees")
     ik.add_argument("--near", type=float, nargs="+", metavar="Q", help="sort solutions nearest to this joint vector (deg)")
     ik.add_argument("--ignore-limits", action="store_true", help="return every solution, ignoring joint ranges")
+    ik.add_argument("--all-turns", action="store_true",
+                    help="list every whole-turn variant of a posture (default: the nearest of each, with their count)")
     ik.add_argument("--json", action="store_true")
     ik.set_defaults(handler=_cmd_kin_ik)

@@ -62,6 +62,26 @@ def _dedupe(solutions: list[np.ndarray]) -> list[np.ndarray]:
     return [s for s, k in zip(solutions, keep) if k]
 
 
+def distinct_branches(solutions: list[np.ndarray]) -> list[tuple[np.ndarray, int]]:
+    """Group solutions that differ only by whole turns of some joints (the same arm posture
+    reached with a joint wound 2 pi further): per group, its first solution (the list is sorted
+    nearest-first, so the nearest) and how many turn variants the group holds. A UR5 with
+    +-2 pi ranges has up to 64 variants of each of its 8 postures."""
+    groups: dict[tuple, int] = {}
+    firsts: list[np.ndarray] = []
+    counts: list[int] = []
+    for q in solutions:
+        key = tuple(np.round(_wrap(q) / DUPLICATE_TOLERANCE).astype(np.int64).tolist())
+        k = groups.get(key)
+        if k is None:
+            groups[key] = len(firsts)
+            firsts.append(q)
+            counts.append(1)
+        else:
+            counts[k] += 1
+    return list(zip(firsts, counts))
+
+
 def solve_ik(
     robot: Robot,
     base_T_tool: np.ndarray | None = None,

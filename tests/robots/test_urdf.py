@@ -222,9 +222,18 @@ def test_cli_ik_of_the_ur5(ur5) -> None:
     solutions = np.array(json.loads(out.stdout)["solutions"])
     assert solutions.shape[1] == 6
     np.testing.assert_allclose(solutions[0], q_deg, atol=1e-5)
-    for s in solutions[:: max(1, len(solutions) // 16)]:
+    for s in solutions:
         reached = ur5.fk(np.radians(s))
         assert np.linalg.norm(reached[:3, 3] - xyz) < 1e-6
+    # one line per posture: no two differ by whole turns only; --all-turns lists every variant
+    wrapped = (solutions + 180.0) % 360.0 - 180.0
+    assert len(np.unique(np.round(wrapped, 3), axis=0)) == len(solutions) <= 8
+    variants = json.loads(out.stdout)["turn_variants"]
+    everything = run_cli(
+        "kin", "ik", "--robot", str(UR5), "--xyz", *(repr(float(v)) for v in xyz), "--rpy", *(repr(float(v)) for v in rpy),
+        "--all-turns", "--json",
+    )
+    assert len(json.loads(everything.stdout)["solutions"]) == sum(variants) > len(solutions)
 
 
 def test_cli_broken_urdf_is_one_line(tmp_path: Path) -> None:
