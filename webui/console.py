@@ -58,6 +58,7 @@ log = logging.getLogger(__name__)
 
 PANEL_WIDTH = 430
 CAMERA_OFFSET = (0.0, -1.1, 0.3)  # m, from the tool at start
+TERRAIN_CAMERA_OFFSET = (0.35, -0.7, 0.35)  # m: a rover's arm is small; look down on it and the ground
 
 
 @dataclass
@@ -207,7 +208,8 @@ def build_console(server: viser.ViserServer, session) -> Console:
     # look at the tool from the front (-y), slightly above: world x runs left to right on screen
     world_p_tool = np.asarray(session.arm_view().world_T_tcp)[:3, 3]
     server.initial_camera.look_at = tuple(world_p_tool)
-    server.initial_camera.position = tuple(world_p_tool + np.array(CAMERA_OFFSET))
+    offset = TERRAIN_CAMERA_OFFSET if getattr(session, "terrain", None) is not None else CAMERA_OFFSET
+    server.initial_camera.position = tuple(world_p_tool + np.array(offset))
     scene = CellScene(server, session.cell)
     ghost = RemoteGhost(server, session.robot, session.cell.world_T_base)
     path = PredictedPath(server)
