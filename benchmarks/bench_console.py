@@ -1,6 +1,6 @@
-"""Console responsiveness while the operator drags: pipeline cost per event and event-to-scene latency.
+"""Console responsiveness while the operator drags: pipeline cost per event, event-to-scene latency, frames in the browser.
 
-Two measurements (issue 7, item 11):
+Three measurements (issue 7, item 11):
 
 * **pipeline**: the session's work for one gizmo event, in process: the jog (IK under the
   constraint), the collision check with interfering triangles and the control zone, automatic
@@ -10,6 +10,14 @@ Two measurements (issue 7, item 11):
 * **end to end**: a running console (``teleprog up --no-robot``); each event is an HTTP jog call,
   and the latency runs until the session's event for it arrives on ``/api/events``: the same
   fan-out that redraws the viser scene (the browser's own rendering is not included).
+* **browser**: the page in headless Chromium (Debian's ``chromium`` driven by Playwright) on a
+  running ``teleprog up --delay-ms 200`` with automatic generation on, while the mouse drags the
+  gizmo's x arrow back and forth: the page's frame times (``requestAnimationFrame`` timestamps),
+  the frames in which WebGL actually drew (draw calls counted by a wrapper installed before the
+  page loads), the viser WebSocket windows that carry scene changes (decoded from the frames the
+  page receives) and the session's ``arm`` events per second. Headless Chromium renders WebGL in
+  software (SwiftShader) here: the frame times are those of a CPU renderer sharing two cores with
+  the console, not of an operator's GPU.
 
 Goals: 30 scene updates per second or more while dragging; event-to-scene p95 under 50 ms.
 """
@@ -139,9 +147,260 @@ def end_to_end(events: int) -> dict:
     return {"events": events, "latency_ms": {"p50": 1e3 * np.percentile(lat, 50), "p95": 1e3 * np.percentile(lat, 95), "max": 1e3 * lat.max()}}
 
 
+# -- the page in headless Chromium ---------------------------------------------------------------
+
+# Installed before the page's own scripts: count WebGL draw calls, so a frame in which the scene
+# was actually redrawn can be told from an idle one (viser renders on demand).
+COUNT_DRAWS_JS = """
+(() => {
+  window.__tp = {draws: 0, run: 0, t: [], d: [], long: []};
+  try {  // main-thread tasks over 50 ms: the page's own JavaScript, as opposed to the renderer
+    new PerformanceObserver((list) => {
+      for (const e of list.getEntries()) window.__tp.long.push([e.startTime, e.duration]);
+    }).observe({type: "longtask", buffered: true});
+  } catch (e) {}
+  for (const ctx of [window.WebGL2RenderingContext, window.WebGLRenderingContext]) {
+    if (!ctx) continue;
+    for (const name of ["drawElements", "drawArrays", "drawElementsInstanced", "drawArraysInstanced", "drawRangeElements"]) {
+      const original = ctx.prototype[name];
+      if (typeof original !== "function") continue;
+      ctx.prototype[name] = function (...args) { window.__tp.draws++; return original.apply(this, args); };
+    }
+  }
+})();
+"""
+# One timestamp and the draw count per animation frame until stopped.
+# (a loop left over from an earlier recording sees a newer ``run`` and ends without writing)
+START_FRAMES_JS = """() => {
+  const tp = window.__tp; tp.t = []; tp.d = []; tp.run = (tp.run || 0) + 1;
+  const run = tp.run;
+  const frame = (now) => {
+    if (tp.run !== run) return;
+    tp.t.push(now); tp.d.push(tp.draws); requestAnimationFrame(frame);
+  };
+  requestAnimationFrame(frame);
+}"""
+STOP_FRAMES_JS = "() => { const tp = window.__tp; tp.run += 1; return {t: tp.t, d: tp.d, long: tp.long}; }"
+
+# viser messages that change the 3D scene (the rest change the GUI panel)
+SCENE_UPDATES = {"SetPositionMessage", "SetOrientationMessage", "SetSceneNodeVisibilityMessage",
+                 "SceneNodeUpdateMessage", "RemoveSceneNodeMessage", "SetBoneOrientationMessage",
+                 "SetBonePositionMessage"}
+
+
+def _scene_message_types() -> set[str]:
+    import viser._messages as messages
+
+    pending, names = [messages._CreateSceneNodeMessage], set()
+    while pending:  # every subclass: the messages that (re)create a scene node
+        for sub in pending.pop().__subclasses__():
+            names.add(sub.__name__)
+            pending.append(sub)
+    return names | SCENE_UPDATES
+
+
+def viser_window_types(payload: bytes) -> list[str]:
+    """The message types in one WebSocket frame of viser 1.x: 8 bytes decompressed size, 8 bytes
+    compressed size, zstd-compressed msgpack ``{"messages": [...]}``, then raw buffers."""
+    import msgspec
+    import zstandard
+
+    size, packed = int.from_bytes(payload[:8], "little"), int.from_bytes(payload[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(payload[16 : 16 + packed], max_output_size=size)
+    return [m.get("type", "?") for m in msgspec.msgpack.decode(inner).get("messages", ())]
+
+
+def _frame_stats(t_ms: list[float], draws: list[int], long_tasks: list[list[float]] = ()) -> dict:
+    """Frame rate and frame times from per-frame timestamps (ms) and cumulative draw counts; a
+    frame that outlasts the whole window leaves too few timestamps and reads as NaN."""
+    t = np.asarray(t_ms, dtype=float)
+    d = np.asarray(draws, dtype=float)
+    if len(t) < 3:
+        nan = float("nan")
+        return {"seconds": nan, "frames": max(len(t) - 1, 0), "fps": nan, "frame_ms": {"p50": nan, "p95": nan, "max": nan},
+                "rendered_frames": 0, "draw_calls_per_rendered_frame": nan, "rendered_fps": nan,
+                "render_interval_ms": {"p50": nan, "p95": nan}, "main_thread_long_task_share": nan}
+    dt = np.diff(t)
+    span = (t[-1] - t[0]) / 1e3
+    js_ms = sum(d_ms for start, d_ms in long_tasks if t[0] <= start <= t[-1])
+    drawn = np.flatnonzero(np.diff(d) > 0) + 1  # frames during which WebGL drew
+    drawn_dt = np.diff(t[drawn]) if len(drawn) > 1 else np.array([np.nan])
+    return {
+        "seconds": span,
+        "frames": int(len(dt)),
+        "fps": len(dt) / span,
+        "frame_ms": {"p50": float(np.percentile(dt, 50)), "p95": float(np.percentile(dt, 95)), "max": float(dt.max())},
+        "rendered_frames": int(len(drawn)),
+        "draw_calls_per_rendered_frame": float((d[-1] - d[0]) / len(drawn)) if len(drawn) else float("nan"),
+        "rendered_fps": len(drawn) / span,
+        "render_interval_ms": {"p50": float(np.nanpercentile(drawn_dt, 50)), "p95": float(np.nanpercentile(drawn_dt, 95))},
+        "main_thread_long_task_share": js_ms / 1e3 / span,
+    }
+
+
+def _find_gizmo_grab(ui, cx: float, cy: float, scale: float) -> float:
+    """Offset right of the canvas centre where a short drag moves the tool along world x (the
+    camera looks at the tool from -y; offsets found for a 900 px high view, times ``scale``);
+    the probe drag is undone with a drag back."""
+    for grab in (40 * scale, 55 * scale, 30 * scale, 70 * scale, 25 * scale):
+        before = ui.session()["arm"]["tool_xyz_mm"][0]
+        ui.drag(cx + grab, cy, cx + grab + 30 * scale, cy)
+        time.sleep(0.6)
+        moved = ui.session()["arm"]["tool_xyz_mm"][0] - before
+        if abs(moved) > 1.0:
+            ui.drag(cx + grab + 30 * scale, cy, cx + grab, cy)
+            time.sleep(0.6)
+            return float(grab)
+    raise RuntimeError("no grab point on the gizmo's x arrow moved the tool")
+
+
+def _settle(page, limit_s: float = 20.0) -> None:
+    """Wait (up to ``limit_s``) for a second in which the page's JavaScript ran no long task: the
+    first seconds of the page compile shaders and lay out the panel, which is not what is timed."""
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        page.evaluate(START_FRAMES_JS)
+        page.wait_for_timeout(1000)
+        raw = page.evaluate(STOP_FRAMES_JS)
+        if len(raw["t"]) > 2 and not any(raw["t"][0] <= start <= raw["t"][-1] for start, _ in raw["long"]):
+            return
+
+
+class _ArmEvents:
+    """Times of the session's ``arm`` events on /api/events, read on a thread."""
+
+    def __init__(self, url: str) -> None:
+        import threading
+
+        from websockets.sync.client import connect
+
+        self.times: list[float] = []
+        self.ws = connect(url.replace("http", "ws") + "/api/events", max_size=None, compression=None)
+        self.thread = threading.Thread(target=self._read, daemon=True)
+        self.thread.start()
+
+    def _read(self) -> None:
+        try:
+            for raw in self.ws:
+                if json.loads(raw).get("type") == "arm":
+                    self.times.append(time.perf_counter())
+        except Exception:  # noqa: BLE001 - closed at the end
+            pass
+
+    def between(self, t0: float, t1: float) -> int:
+        return sum(1 for t in self.times if t0 <= t <= t1)
+
+    def close(self) -> None:
+        self.ws.close()
+
+
+def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.0, period_s: float = 2.0,
+            viewport: tuple[int, int] = (1400, 900)) -> dict:
+    """Drag the gizmo in the page for ``seconds`` and measure frames and scene updates there."""
+    import tempfile
+
+    from playwright.sync_api import sync_playwright
+
+    sys.path.insert(0, str(ROOT / "tests" / "browser"))
+    from console_page import ConsolePage
+    from support import CHROMIUM_ARGS, start_console, stop_process
+
+    executable = os.environ.get("CHROMIUM", "/usr/bin/chromium")
+    if not Path(executable).exists():
+        raise RuntimeError(f"Debian's chromium is needed ({executable} not found)")
+    scene_types = _scene_message_types()
+    console = start_console(Path(tempfile.mkdtemp(prefix="bench_console_")), "--delay-ms", "200")
+    frames: list[tuple[float, bytes]] = []  # (arrival, payload) of the viser socket's frames
+    events = None
+    try:
+        # generated statements stay in the program (quasi regime): the robot stays idle
+        for method, path, body in (("PUT", "/api/regime", {"regime": "quasi"}), ("PUT", "/api/program/auto", {"on": True})):
+            r = console.api(method, path, json=body)
+            if r.status_code >= 400:
+                raise RuntimeError(f"{method} {path}: {r.status_code} {r.text}")
+        with sync_playwright() as pw:
+            chromium = pw.chromium.launch(executable_path=executable, headless=True, args=CHROMIUM_ARGS)
+            context = chromium.new_context(viewport={"width": viewport[0], "height": viewport[1]})
+            page = context.new_page()
+            page.add_init_script(COUNT_DRAWS_JS)
+
+            def on_socket(ws) -> None:
+                if "/viser" in ws.url:
+                    ws.on("framereceived", lambda payload: frames.append((time.perf_counter(), payload)))
+
+            page.on("websocket", on_socket)
+            ui = ConsolePage(page, console)
+            ui.open()
+            renderer = page.evaluate(
+                "() => { const gl = document.createElement('canvas').getContext('webgl2');"
+                " const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');"
+                " return ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL) : (gl ? gl.getParameter(gl.RENDERER) : 'none'); }"
+            )
+            cx, cy = ui.canvas_center()
+            scale = page.locator("canvas").first.bounding_box()["height"] / 900.0
+            grab = _find_gizmo_grab(ui, cx, cy, scale)
+            amplitude_px *= scale
+            events = _ArmEvents(console.url)
+            page.mouse.move(cx - 200, cy + 200)
+            _settle(page)
+            # the page at rest (the robot idle, its telemetry still arriving)
+            page.evaluate(START_FRAMES_JS)
+            i0 = time.perf_counter()
+            page.wait_for_timeout(idle_seconds * 1e3)
+            i1 = time.perf_counter()
+            raw = page.evaluate(STOP_FRAMES_JS)
+            idle = _frame_stats(raw["t"], raw["d"], raw["long"])
+            # the drag: press on the x arrow, sweep it left and right, let go at the end
+            x0 = cx + grab
+            page.mouse.move(x0, cy)
+            time.sleep(0.15)
+            page.mouse.down()
+            entries_before = len(ui.session()["program"]["entries"])
+            page.evaluate(START_FRAMES_JS)
+            t0 = time.perf_counter()
+            moves = 0
+            while (t := time.perf_counter() - t0) < seconds:
+                page.mouse.move(x0 + amplitude_px * np.sin(2 * np.pi * t / period_s), cy)
+                moves += 1
+                time.sleep(0.005)
+            t1 = time.perf_counter()
+            raw = page.evaluate(STOP_FRAMES_JS)
+            page.mouse.up()
+            time.sleep(0.8)
+            drag = _frame_stats(raw["t"], raw["d"], raw["long"])
+            statements = len(ui.session()["program"]["entries"]) - entries_before
+            context.close()
+            chromium.close()
+        arm_events_drag, arm_events_idle = events.between(t0, t1), events.between(i0, i1)
+    finally:
+        if events is not None:
+            events.close()
+        stop_process(console.proc)
+
+    def windows(a: float, b: float) -> dict:
+        chosen = [p for (t, p) in frames if a <= t <= b and isinstance(p, bytes | bytearray)]
+        kinds = [viser_window_types(bytes(p)) for p in chosen]
+        scene = sum(1 for k in kinds if any(name in scene_types for name in k))
+        return {"windows": len(chosen), "windows_per_s": len(chosen) / (b - a),
+                "scene_windows": scene, "scene_updates_per_s": scene / (b - a),
+                "scene_messages": sum(1 for k in kinds for name in k if name in scene_types)}
+
+    drag.update(windows(t0, t1))
+    idle.update(windows(i0, i1))
+    drag.update({"mouse_moves_per_s": moves / (t1 - t0), "arm_events_per_s": arm_events_drag / (t1 - t0),
+                 "statements_generated": statements})
+    idle.update({"arm_events_per_s": arm_events_idle / (i1 - i0)})
+    uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    return {"renderer": renderer, "viewport": list(viewport), "drag": drag, "idle": idle, "uptime": uptime,
+            "load_average": list(os.getloadavg())}
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--events", type=int, default=2000, help="gizmo events in the pipeline measurement")
     p.add_argument("--e2e-events", type=int, default=300, help="HTTP jog events through a running console (0: skip)")
+    p.add_argument("--browser-seconds", type=float, default=10.0,
+                   help="seconds of gizmo dragging in headless Chromium (0: skip)")
+    p.add_argument("--browser-viewport", default="1400x900", help="page size in CSS pixels, WIDTHxHEIGHT")
     p.add_argument("--json", action="store_true")
 
 
@@ -149,6 +408,9 @@ def main_with(args: argparse.Namespace) -> int:
     out = {"pipeline": pipeline(args.events)}
     if args.e2e_events:
         out["end_to_end"] = end_to_end(args.e2e_events)
+    if args.browser_seconds:
+        width, height = (int(v) for v in args.browser_viewport.lower().split("x"))
+        out["browser"] = browser(args.browser_seconds, viewport=(width, height))
     out["load_average"] = os.getloadavg()[0]
     if args.json:
         print(json.dumps(out, default=float))
@@ -160,6 +422,18 @@ def main_with(args: argparse.Namespace) -> int:
         if "end_to_end" in out:
             e = out["end_to_end"]["latency_ms"]
             print(f"event -> session event: p50 {e['p50']:.1f} ms, p95 {e['p95']:.1f} ms (goal 50), max {e['max']:.1f} ms")
+        if "browser" in out:
+            b = out["browser"]
+            for name in ("idle", "drag"):
+                f = b[name]
+                print(f"browser {name}: {f['fps']:.1f} frames/s, frame p50 {f['frame_ms']['p50']:.1f} ms, "
+                      f"p95 {f['frame_ms']['p95']:.1f} ms, max {f['frame_ms']['max']:.0f} ms; "
+                      f"{f['rendered_fps']:.1f} rendered frames/s; {f['scene_updates_per_s']:.1f} scene updates/s "
+                      f"({f['windows_per_s']:.1f} viser windows/s); {f['arm_events_per_s']:.1f} session arm events/s; "
+                      f"{f['draw_calls_per_rendered_frame']:.0f} draw calls per rendered frame; page JavaScript in long tasks "
+                      f"{100 * f['main_thread_long_task_share']:.0f}% of the time")
+            print(f"browser drag: {b['drag']['mouse_moves_per_s']:.0f} mouse moves/s, "
+                  f"{b['drag']['statements_generated']} statements generated; renderer {b['renderer']}; {b['uptime']}")
         print(f"load average {out['load_average']:.1f}")
     return 0
 

@@ -17,6 +17,8 @@ from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 T = TypeVar("T")
 
+HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message throttle
+
 
 def wait_for(predicate: Callable[[], T], timeout: float = 15.0, interval: float = 0.1, what: str = "condition") -> T:
     deadline = time.monotonic() + timeout
@@ -30,9 +32,16 @@ def wait_for(predicate: Callable[[], T], timeout: float = 15.0, interval: float 
 
 
 class ConsolePage:
-    def __init__(self, page: Page, console) -> None:
+    def __init__(self, page: Page, console, quick_clicks: bool = False) -> None:
         self.page = page
         self.console = console
+        # Playwright waits before each click until the element has kept its place for two
+        # animation frames; when software WebGL on a loaded machine stretches frames to a second,
+        # that wait dominates. ``quick_clicks`` clicks static controls once they are visible,
+        # after a pause as long as a hand takes to reach them: viser's page sends GUI messages
+        # through one sender throttled to 50 ms that keeps only the latest message, so a click
+        # within 50 ms of the last keystroke would replace the typed value on its way out.
+        self.quick_clicks = quick_clicks
 
     # -- reading the session (checks only) -------------------------------------------------
     def session(self) -> dict:
@@ -60,11 +69,22 @@ class ConsolePage:
             except PlaywrightTimeout:
                 pass  # closed by itself or covered: a notice is cosmetic
 
+    def press(self, target: Locator) -> None:
+        """A mouse click on ``target`` (see ``quick_clicks``)."""
+        if self.quick_clicks:
+            target.wait_for(state="visible")
+            time.sleep(HAND_S)
+            target.click(force=True)
+        else:
+            target.click()
+
     def tab(self, name: str) -> None:
-        self.page.get_by_role("tab", name=name).click()
+        tab = self.page.get_by_role("tab", name=name)
+        if tab.get_attribute("aria-selected") != "true":  # a click on the open tab does nothing
+            self.press(tab)
 
     def click(self, label: str) -> None:
-        self.page.get_by_role("button", name=label, exact=True).first.click()
+        self.press(self.page.get_by_role("button", name=label, exact=True).first)
 
     def row(self, label: str) -> Locator:
         """The GUI row whose label reads exactly ``label`` (viser puts label and input in one
@@ -74,19 +94,19 @@ class ConsolePage:
 
     def type_into(self, label: str, text: str) -> None:
         box = self.row(label).locator("input").first
-        box.click()
+        self.press(box)
         box.press("Control+a")
         box.press("Delete")
         box.type(text)
 
     def choose(self, label: str, option: str, exact: bool = True) -> None:
-        self.row(label).locator("input").first.click()
-        self.page.get_by_role("option", name=option, exact=exact).first.click()
+        self.press(self.row(label).locator("input").first)
+        self.page.get_by_role("option", name=option, exact=exact).first.click()  # it slides open: wait
 
     def set_number(self, label: str, value: float) -> None:
         """Type into a number input (or a slider's number box) and press Enter."""
         box = self.number_box(label)
-        box.click()
+        self.press(box)
         box.press("Control+a")
         box.type(f"{value:g}")
         box.press("Enter")
@@ -148,3 +168,62 @@ class ConsolePage:
         self.tab("Program")
         self.type_into("New statement", text)
         self.click("Insert before selection")
+
+    # -- the peg transfer: submit, follow the sent list, re-sync (all through the page) ------------
+    SENT_LINE = re.compile(
+        r"^#(?P<number>\d+|\?) (?P<text>.*?): (?P<status>sending|received|running|done|FAILED|skipped|aborted|REJECTED)\b(?P<rest>.*)$",
+        re.M,
+    )
+
+    def choose_regime(self, value: str) -> None:
+        """Override the regime with the status bar's selector (``free``, ``quasi``, ...)."""
+        self.choose("Regime", value)
+
+    def insert_statements(self, texts: list[str]) -> None:
+        """Type each statement into the program panel's input and insert it before the selected
+        trailing empty statement, waiting for each to land (so they keep their order)."""
+        for text in texts:
+            count = len(self.session()["program"]["entries"])
+            self.insert_statement(text)
+            wait_for(lambda: len(self.session()["program"]["entries"]) == count + 1,
+                     what=f"statement {text!r} inserted (page notice: {self.notice()!r})")
+
+    def notice(self) -> str:
+        """The status bar's last notice line as the page shows it ('' if none)."""
+        m = re.search(r"^(Refused|Error|Warning|Note):.*$", self.page.inner_text("body"), re.M)
+        return m.group(0) if m else ""
+
+    def submit_range(self, first: int, last: int) -> None:
+        """On the Submit tab, set the range (numbered from 1 as the page counts) and submit it."""
+        self.tab("Submit")
+
+        def shown() -> bool:
+            return (self.number_box("Submit from").input_value() == str(first)
+                    and self.number_box("Submit to").input_value() == str(last))
+
+        try:  # the page proposes 1..n, all that is in the program: often there is nothing to type
+            wait_for(shown, timeout=2.0)
+        except AssertionError:
+            self.set_number("Submit from", first)
+            self.set_number("Submit to", last)
+            wait_for(shown, what=f"range {first}-{last} set")
+        self.click("Submit range")
+
+    def sent_lines(self) -> list[dict[str, str]]:
+        """The sent list as the Submit tab shows it: number, text and status of each line."""
+        return [m.groupdict() for m in self.SENT_LINE.finditer(self.page.inner_text("body"))]
+
+    def wait_sent_final(self, total: int, timeout: float = 60.0) -> list[dict[str, str]]:
+        """Wait until the page lists ``total`` sent statements, none pending, and return the
+        lines it shows (the newest ones)."""
+        self.tab("Submit")
+        self.text_appears(rf"\b{total} sent, 0 pending", timeout=timeout)
+        return self.sent_lines()
+
+    def resync_when_offered(self, timeout: float = 30.0) -> None:
+        """Wait for the divergence warning and its re-sync button, then click it."""
+        button = self.page.get_by_role("button", name="Re-sync from robot", exact=True)
+        button.wait_for(state="visible", timeout=timeout * 1000)
+        self.text_appears(r"Divergence:", timeout=5)
+        self.press(button)
+        button.wait_for(state="hidden", timeout=timeout * 1000)
