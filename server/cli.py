@@ -14,6 +14,8 @@ import pkgutil
 import sys
 from collections.abc import Callable, Sequence
 
+from pydantic import ValidationError
+
 from server import commands
 from shared.errors import TeleprogError
 
@@ -54,6 +56,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.handler(args))
     except TeleprogError as exc:
         print(f"teleprog: error: {exc}", file=sys.stderr)
+        return 1
+    except ValidationError as exc:
+        # a settings object refused a value from a flag or a TELEPROG_* variable
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err.get("loc", ())) or "(value)"
+        print(f"teleprog: error: {exc.title} {where}: {err.get('msg', 'invalid')}; got {err.get('input')!r}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130

@@ -61,3 +61,21 @@ def test_ik_json_contains_the_configuration_it_came_from() -> None:
     assert out.returncode == 0, out.stderr
     solutions = np.array(json.loads(out.stdout)["solutions"])
     assert np.min(np.max(np.abs(solutions - q), axis=1)) < 1e-4
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "args", "field"),
+    [
+        ("TELEPROG_SEDIMENTATION_N", "abc", ("up", "--sedimentation", "--port", "0"), "sedimentation_n"),
+        ("TELEPROG_ROBOT_PORT", "xyz", ("robot", "--port", "0"), "port"),
+    ],
+)
+def test_a_bad_setting_in_the_environment_is_one_line(variable, value, args, field, monkeypatch) -> None:
+    monkeypatch.setenv(variable, value)
+    out = run(*args)
+    assert out.returncode == 1
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1, out.stderr
+    line = lines[0]
+    assert line.startswith("teleprog: error:") and field in line and repr(value) in line
