@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 FIG_DIR = ROOT / "benchmarks" / "figures"
-OURS = ("usscd", "usscd_skin", "scd", "icollide", "pbnuss", "cbass")
+OURS = ("usscd", "usscd_skin", "scd", "icollide", "pbnuss", "cbass", "ugrid", "ugrid_skin")
 SLOW = ("scd", "icollide")  # O(n log n + sweep) without subdivision: capped at --max-n-slow
 PEERS = ("ckdtree", "coal_tree", "coal_sap")
 THESIS = {
@@ -134,7 +134,7 @@ class CoalPeer:
 
 
 def frames_for(n: int, base: int) -> int:
-    return int(np.clip(base * 20000 // max(n, 1), 6, base))
+    return int(np.clip(base * 20000 // max(n, 1), 10, base))
 
 
 def run_config(exp, kind, n, size, speed, engines, peers, frames, seed, log) -> list[Row]:

@@ -45,7 +45,8 @@ def test_thesis_density_scene_matches_brute_force():
 def test_parallel_kernels_on_a_large_scene():
     # above grid.PARALLEL_MIN the parallel kernels run (two threads, chunked sweeps)
     scene = make_scene("gaussian", n=21000, density=0.002, seed=8)
-    assert run_against_brute(scene, frames=3, methods=["usscd", "usscd_skin", "pbnuss", "cbass"]) > 1000
+    methods = ["usscd", "usscd_skin", "pbnuss", "cbass", "ugrid", "ugrid_skin"]
+    assert run_against_brute(scene, frames=3, methods=methods) > 1000
 
 
 def test_high_speed_and_refits():

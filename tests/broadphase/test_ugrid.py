@@ -1,0 +1,128 @@
+"""The engineered grid (``ugrid``, ``ugrid_skin``): exact against brute force on every code path of
+the column engine - one-block, wide-block and block-after-block filters, the parallel kernels,
+bodies on column borders, the skin list and its plain stretches in crowded scenes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from shared.broadphase import columns, grid, make_detector
+from shared.broadphase.columns import BLOCK, HUGE, WIDE, ColumnEngine
+from shared.broadphase.workloads import make_scene
+
+GRIDS = ["ugrid", "ugrid_skin"]
+
+
+def same_as_brute(det, centres, radii) -> int:
+    ref = make_detector("brute").update(centres, radii)
+    got = det.update(centres, radii)
+    assert got.dtype == np.int64
+    assert np.array_equal(got, ref), f"{len(got)} pairs vs {len(ref)} from brute force"
+    return len(ref)
+
+
+@pytest.mark.parametrize("method", GRIDS)
+@pytest.mark.parametrize("kind", ["uniform", "sediment"])
+def test_two_thousand_frames_match_brute_force(method, kind):
+    scene = make_scene(kind, n=150, density=0.01, speed=0.4, radius_spread=0.5, seed=21)
+    det = make_detector(method)
+    seen = 0
+    for _ in range(2000):
+        seen += same_as_brute(det, scene.centres, scene.radii)
+        scene.step()
+    assert seen > 2000  # contacts on most frames
+
+
+@pytest.mark.parametrize("method", GRIDS)
+def test_crowded_columns_take_every_filter_width(method):
+    # a thin vertical tube (one or two columns holding far more than HUGE bodies), a slab of
+    # columns holding between BLOCK and WIDE, and a sparse background: all three filters run
+    rng = np.random.default_rng(3)
+    tube = np.column_stack([rng.uniform(0, 1.5, 400), rng.uniform(0, 1.5, 400), rng.uniform(0, 300, 400)])
+    slab = np.column_stack([rng.uniform(20, 28, 600), rng.uniform(0, 6, 600), rng.uniform(0, 40, 600)])
+    background = rng.uniform(0, 300, (300, 3))
+    c = np.vstack([tube, slab, background])
+    r = rng.uniform(0.5, 1.0, len(c))
+    assert 400 > HUGE > WIDE > BLOCK
+    det = make_detector(method)
+    for step in range(30):  # moving, so the carried-over order and the skin list are exercised
+        assert same_as_brute(det, c, r) > 0 or step > 0
+        c = c + rng.normal(0, 0.15, c.shape)
+
+
+@pytest.mark.parametrize("method", GRIDS)
+def test_touching_pairs_across_column_borders(method):
+    # centres exactly on the column borders the detector uses, each with a partner at exactly
+    # the contact distance on the other side of the border, along x, y and diagonally
+    r = 1.0
+    seed_scene = make_scene("uniform", n=200, size=60.0, seed=2)
+    probe = make_detector("ugrid")
+    probe.update(seed_scene.centres, r)
+    cell = probe.last_cell
+    lo = seed_scene.centres.min(axis=0)
+    pts = []
+    for i in range(1, 8):
+        for j in range(1, 8):
+            p = lo + np.array([i * cell, j * cell, 5.0 * (i + j)])
+            pts += [p, p - np.array([2 * r, 0.0, 0.0]), p + np.array([0.0, 2 * r, 0.0]),
+                    p + np.array([np.sqrt(2.0), np.sqrt(2.0), 0.0])]
+    c = np.vstack([seed_scene.centres, np.array(pts)])
+    assert np.array_equal(c.min(axis=0)[:2], lo[:2])  # same grid origin: the borders are as built
+    det = make_detector(method)
+    assert same_as_brute(det, c, r) >= 2 * 49
+
+
+@pytest.mark.parametrize("kind", ["uniform", "gaussian"])
+def test_parallel_kernels_exact_on_many_frames(kind, monkeypatch):
+    # the parallel binning, scattering and testing (body parts handed out one at a time, a pair
+    # buffer per part), made to run on a scene small enough for brute force
+    monkeypatch.setattr(grid, "PARALLEL_MIN", 500)
+    monkeypatch.setattr(columns, "PARALLEL_MIN", 500)
+    scene = make_scene(kind, n=3000, density=0.003, speed=0.5, seed=13)
+    dets = [make_detector(m) for m in GRIDS]
+    for _ in range(40):
+        ref = make_detector("brute").update(scene.centres, scene.radii)
+        assert len(ref) > 10
+        for det in dets:
+            assert np.array_equal(det.update(scene.centres, scene.radii), ref)
+        scene.step()
+
+
+def test_skin_list_is_skipped_in_crowded_scenes_and_kept_in_sparse_ones():
+    dense = make_scene("gaussian", n=1500, density=0.002, speed=0.3, seed=4)
+    sparse = make_scene("uniform", n=1500, density=0.0005, speed=0.3, seed=4)
+    d_dense = make_detector("ugrid_skin")
+    d_sparse = make_detector("ugrid_skin")
+    brute = make_detector("brute")
+    for _ in range(50):
+        assert np.array_equal(d_dense.update(dense.centres, dense.radii), brute.update(dense.centres, dense.radii))
+        assert np.array_equal(d_sparse.update(sparse.centres, sparse.radii),
+                              brute.update(sparse.centres, sparse.radii))
+        dense.step()
+        sparse.step()
+    assert d_dense.plain_runs > 25  # the list was too long to pay: plain frames instead
+    assert d_sparse.plain_runs == 0 and d_sparse.rebuilds >= 8
+
+
+def test_very_sparse_scene_widens_the_columns_and_stays_exact():
+    det = make_detector("ugrid", max_columns_per_body=1.0)
+    scene = make_scene("uniform", n=50, size=400.0, seed=6)
+    scene.centres[1] = scene.centres[0] + [1.2, 0.9, 0.0]  # one contact to find
+    assert same_as_brute(det, scene.centres, scene.radii) >= 1
+    assert det.last_cell > 2.0 * 1.0 * 1.01  # wider than the diameter: the column budget
+    extent = np.ptp(scene.centres[:, :2], axis=0)
+    assert (extent[0] / det.last_cell + 1) * (extent[1] / det.last_cell + 1) <= 50 + 16
+
+
+def test_engine_keeps_the_last_frame_order():
+    # the next frame's gather order is the column order of this one (temporal coherence)
+    scene = make_scene("uniform", n=500, density=0.005, seed=7)
+    eng = ColumnEngine()
+    lo, hi = scene.centres.min(axis=0), scene.centres.max(axis=0)
+    eng.pairs(scene.centres, scene.radii, lo, hi, 2.5, 1.0 + 1e-9)
+    order = eng._perm.copy()
+    assert sorted(order.tolist()) == list(range(500))
+    cols = np.floor((scene.centres[order, 0] - lo[0]) / 2.5) * np.ceil((hi[1] - lo[1]) / 2.5) + \
+        np.floor((scene.centres[order, 1] - lo[1]) / 2.5)
+    assert (np.diff(cols) >= 0).all()
