@@ -17,16 +17,15 @@ from contextlib import asynccontextmanager, suppress
 from dataclasses import dataclass
 
 from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
 from server.api_models import HealthOut
-from server.console_models import ConflictError, RefusedByRule
+from server.http_errors import add_error_handler
 from server.session import Session
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
-from shared.errors import InputError, TeleprogError
 
 log = logging.getLogger(__name__)
 
@@ -101,18 +100,7 @@ def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = Tr
         lifespan=lifespan,
     )
 
-    @app.exception_handler(TeleprogError)
-    async def _teleprog_error(request: Request, exc: TeleprogError) -> JSONResponse:
-        if isinstance(exc, InputError):
-            status = 400
-        elif isinstance(exc, ConflictError):
-            status = 409
-        else:
-            status = 422
-        body: dict[str, str] = {"error": type(exc).__name__, "detail": str(exc)}
-        if isinstance(exc, RefusedByRule):
-            body["rule"] = exc.refusal.rule.value
-        return JSONResponse(body, status_code=status)
+    add_error_handler(app)
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:

@@ -16,14 +16,14 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from typing import Literal
 
-from fastapi import FastAPI, HTTPException, Request
-from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi import FastAPI, HTTPException
+from fastapi.responses import RedirectResponse
 from pydantic import BaseModel
 
+from server.http_errors import add_error_handler
 from server.sedimentation import SedimentationChange, SedimentationRunner, SedimentationSettings, SedimentationState
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
-from shared.errors import InputError, TeleprogError
 
 log = logging.getLogger(__name__)
 
@@ -88,10 +88,7 @@ def create_sedimentation_app(settings: ConsoleSettings | None = None, *, build_p
         lifespan=lifespan,
     )
 
-    @app.exception_handler(TeleprogError)
-    async def _teleprog_error(request: Request, exc: TeleprogError) -> JSONResponse:
-        status = 400 if isinstance(exc, InputError) else 422
-        return JSONResponse({"error": type(exc).__name__, "detail": str(exc)}, status_code=status)
+    add_error_handler(app)
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:

@@ -9,26 +9,13 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Callable
-from typing import TypeVar
 
 from playwright.sync_api import Locator, Page
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-T = TypeVar("T")
+from support import wait_for  # noqa: F401 - the page tests import it from here too
 
 HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message throttle
-
-
-def wait_for(predicate: Callable[[], T], timeout: float = 15.0, interval: float = 0.1, what: str = "condition") -> T:
-    deadline = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} not met within {timeout:g} s")
-        time.sleep(interval)
 
 
 class ConsolePage:
