@@ -47,6 +47,7 @@ from shared.language.statements import (
 from shared.language.tasks import EXTRACT_LIFT_M, find_task, resolve_name
 from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopReason
 from shared.spatial import matrix_to_rpy
+from shared.terrain.cell import TERRAIN_OBJECT, has_terrain, load_cell_terrain
 from shared.wire.messages import ControlMode, RobotSnapshot, RobotState, StatementState
 from robot_sim.world import SimWorld
 
@@ -107,7 +108,11 @@ class Executor:
         # The collision core watches the arm against the real cell on every servo step. Pegs are
         # left to the contact model above (their fit in a hole is finer than any mesh test), and
         # so is the gripper holding or closing on one.
-        self._scene = SceneModel.from_cell(cell) if self.settings.collision_checks else None
+        # a terrain (rover cells) is checked by its own tree: building the generic hierarchy over
+        # tens of thousands of triangles took seconds at every start
+        self._terrain = load_cell_terrain(cell).checker if self.settings.collision_checks and has_terrain(cell) else None
+        exclude = (TERRAIN_OBJECT,) if self._terrain is not None else ()
+        self._scene = SceneModel.from_cell(cell, exclude=exclude) if self.settings.collision_checks else None
         self._skip = tuple(
             (peg, other) for peg in world.pegs for other in ("plate", "table", f"link{self.robot.dof}", f"link{self.robot.dof - 1}")
         )
@@ -257,6 +262,9 @@ class Executor:
             if report.colliding:
                 pair = report.pairs[0]
                 raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
+        if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
+            shape = self._terrain.exact_check(q).shape
+            raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
 
     def _first_reach(self, q_from: np.ndarray, q_to: np.ndarray, limit: float) -> np.ndarray:
         """Where on the servo step from ``q_from`` to ``q_to`` the force first reaches ``limit``

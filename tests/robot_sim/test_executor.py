@@ -149,3 +149,20 @@ def test_a_refused_plan_fails_its_statement_with_the_reason() -> None:
     done = finals(ex.run_until_idle())
     assert done[1].state is StatementState.FAILED and "reach" in done[1].reason.lower()
     assert ex.state is RobotState.FAULT and 2 not in done
+
+
+def test_the_rover_stops_where_its_arm_meets_the_terrain() -> None:
+    rover = load_cell(ASSETS_DIR / "cells" / "rover_terrain.toml")
+    ex = Executor(rover, SimWorld(rover, rover.robot, WorldSettings()))
+    # a joint move that swings the arm down onto the ground (its end lies on the terrain)
+    for number, statement in enumerate(parse_program("MOVE (-69.5, 3, -43) deg").statements, start=1):
+        ex.enqueue(number, statement)
+    done = finals(ex.run_until_idle())
+    assert done[1].state is StatementState.FAILED and "touches the terrain" in done[1].reason
+    assert ex.state is RobotState.FAULT
+    # it stopped at the first servo step in contact: short of the goal, just touching
+    from shared.terrain.cell import load_cell_terrain
+
+    checker = load_cell_terrain(rover).checker
+    assert checker.min_distance(ex.q) <= 0.0
+    assert np.max(np.abs(ex.q - np.radians([-69.5, 3.0, -43.0]))) > np.radians(0.5)
