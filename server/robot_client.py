@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 import uuid
 from collections.abc import Callable, Iterable
 
@@ -68,6 +69,9 @@ class RobotClient:
         self.reports: list[StatusReport] = []
         self.connected = asyncio.Event()
         self.reconnects = 0
+        self.handshake_s: float | None = None
+        """Seconds from ``hello`` to ``welcome`` on the newest connection: one round trip over
+        the link, without the time spent waiting for the robot or link to come up."""
         self._ws: ClientConnection | None = None
         self._lock = asyncio.Lock()  # one writer: welcome replays and new units never interleave
         self._answers: dict[int, asyncio.Future[Accepted | Rejected]] = {}
@@ -167,10 +171,12 @@ class RobotClient:
             try:
                 async with connect(f"{self.url}/command", max_size=MAX_MESSAGE_BYTES, compression=None, open_timeout=5) as ws:
                     self._ws = ws
+                    hello_at = time.monotonic()
                     await ws.send(encode_message(self.sender.hello()))
                     async for raw in ws:
                         msg = decode_message(raw)
                         if isinstance(msg, Welcome):
+                            self.handshake_s = time.monotonic() - hello_at
                             async with self._lock:
                                 await self._send_all(self.sender.on_welcome(msg))
                                 self.connected.set()

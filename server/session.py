@@ -1112,6 +1112,8 @@ class Session:
 
     async def _send(self, robot, comm: int, statements: list[Statement]) -> None:
         t0 = self._clock()
+        # a round trip counts only if the link stayed up throughout (else it includes the outage)
+        steady = (robot.connected.is_set(), robot.reconnects)
         try:
             numbers = await robot.submit(statements)
         except TeleprogError as exc:  # CommunicationRejected
@@ -1127,7 +1129,8 @@ class Session:
             log.exception("submission %d failed", comm)
             self._emit([Notice(level="error", message=f"submission failed: {exc}")])
             return
-        self.note_round_trip(self._clock() - t0)
+        if steady == (True, robot.reconnects) and robot.connected.is_set():
+            self.note_round_trip(self._clock() - t0)
         with self._lock:
             items = [s for s in self._sent if s.comm == comm]
             now = time.time()
