@@ -301,6 +301,16 @@ class PlacementView(_View):
     message: str = ""
 
 
+class LocatedView(_View):
+    """A virtual object's pose corrected from a camera image (thesis §4.2.3)."""
+
+    object: str
+    camera: str
+    world_T_object: list[list[float]]
+    residual_px: float = Field(description="RMS reprojection error of the feature points, pixels")
+    moved: float = Field(description="how far the object's origin moved, m")
+
+
 class SessionSnapshot(_View):
     """Everything at once (``GET /api/session``)."""
 

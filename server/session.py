@@ -79,6 +79,7 @@ from server.console_models import (
     SessionEvent,
     SessionSnapshot,
     StatementView,
+    LocatedView,
     TerrainChanged,
     TerrainView,
     PlacementChanged,
@@ -87,7 +88,7 @@ from server.console_models import (
 from server.terrain_layer import TerrainLayer
 from shared.cells.cell import Cell
 from shared.collision import SceneModel, zone
-from shared.errors import InputError, TeleprogError
+from shared.errors import InputError, TeleprogError, UnknownNameError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
 from shared.language.statements import Mode, SetMode, Speed, Statement, TaskCall, Until, is_action, program_to_json
@@ -96,6 +97,7 @@ from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import ControlMode, GeneratorSettings, ProgramGenerator, RobotSample
 from shared.robots.jog import JogFrames, JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
 from shared.spatial import invert, matrix_to_rpy, pose_to_transform
+from shared.vision.pose import locate_object as locate_object_pose
 
 log = logging.getLogger(__name__)
 
@@ -135,6 +137,8 @@ class SessionSettings:
     """rad: a joint differing more than this between virtual/predicted and reported arm diverges."""
     divergence_tool: float = 0.002
     """m: a tool point further than this from where it should be diverges."""
+    locate_max_residual_px: float = 3.0
+    """pixels: picked image points that reproject worse than this do not locate an object."""
     preview_dt: float = 0.05
     """s: spacing of the preview samples checked for collisions and joint limits."""
     preview_max_samples: int = 600
@@ -1370,6 +1374,41 @@ class Session:
             if d > worst:
                 worst, name = d, obj
         return name, worst
+
+    def locate_object(self, name: str, camera: str, pixels: Sequence[Sequence[float]], *, client: str | None = None) -> LocatedView:
+        """Correct a virtual object's pose from its feature points seen in a calibrated camera's
+        image (thesis §4.2.3): ``pixels`` (u, v) in the order of the object's keypoints."""
+        obj = self._resolve_object(name)
+        if obj is None:
+            raise UnknownNameError("object", name, self.cell.object_names)
+        if camera not in self.cell.cameras:
+            raise UnknownNameError("camera", camera, self.cell.cameras)
+        keypoints = self.cell.object(obj).keypoints
+        if len(keypoints) < 4:
+            raise InputError(f"object {obj!r} has {len(keypoints)} feature points in the cell file; locating it needs 4")
+        px = np.asarray(pixels, dtype=float)
+        if px.ndim != 2 or px.shape[1] != 2 or px.shape[0] != len(keypoints):
+            raise InputError(f"{obj!r} has {len(keypoints)} feature points: give one pixel (u, v) for each, in order")
+        located = locate_object_pose(self.cell.cameras[camera], keypoints, px)
+        if located.residual_px > self.settings.locate_max_residual_px:
+            raise InputError(
+                f"the picked pixels do not fit {obj!r}'s feature points (reprojection error {located.residual_px:.1f} px, "
+                f"at most {self.settings.locate_max_residual_px:g}): check the order of the points"
+            )
+        with self._lock:
+            self._check_control(client)
+            self._check_not_previewing("correct an object")
+            if obj == self._held:
+                raise ConflictError(f"{obj!r} is in the virtual gripper; release it before correcting its pose")
+            before = self._world_T_object(obj).copy()
+            self._object_poses[obj] = located.world_T_object.copy()
+            moved = float(np.linalg.norm(located.world_T_object[:3, 3] - before[:3, 3]))
+            events = self._after_arm_change()
+        view = LocatedView(object=obj, camera=camera, world_T_object=_m(located.world_T_object),
+                           residual_px=located.residual_px, moved=moved)
+        self._emit([*events, Notice(level="info", message=f"{obj} located from camera {camera}: moved {moved * 1e3:.1f} mm "
+                                                            f"(reprojection {located.residual_px:.2f} px)")])
+        return view
 
     def resync(self, *, client: str | None = None) -> SessionSnapshot:
         """Put the virtual arm (and the object the robot holds) where telemetry says, and start

@@ -44,6 +44,7 @@ from server.console_models import (
 )
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
+from webui.locate_panel import LocatePanel
 from webui.monitor_panel import MonitorPanel
 from webui.overlays import CollisionOverlay, PredictedPath
 from webui.panels import DrivePanel
@@ -220,6 +221,8 @@ def build_console(server: viser.ViserServer, session) -> Console:
     tabs = server.gui.add_tab_group()
     with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
         drive = DrivePanel(server, session, scene, actions)
+        if LocatePanel.wanted(session):
+            LocatePanel(server, session, actions)
     with tabs.add_tab("Program", viser.Icon.LIST_NUMBERS):
         program = ProgramPanel(server, session, actions)
     with tabs.add_tab("Preview", viser.Icon.EYE):

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from fastapi import FastAPI
 
-from server.api import arm, events, program, preview, robot, session, terrain
+from server.api import arm, events, objects, program, preview, robot, session, terrain
 
 
 def include_routers(app: FastAPI) -> None:
-    for module in (session, arm, program, preview, robot, terrain, events):
+    for module in (session, arm, objects, program, preview, robot, terrain, events):
         app.include_router(module.router)

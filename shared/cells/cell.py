@@ -15,6 +15,7 @@ import numpy as np
 
 from shared.robots.description import LinkShape
 from shared.robots.model import Robot
+from shared.vision.camera import Camera
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,8 @@ class CellObject:
     movable: bool = False
     held: bool = False  # starts in the gripper (pose then relative to the tool point)
     color: tuple[int, int, int] = (180, 180, 180)
+    keypoints: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Feature points (n, 3) in the object's frame that a camera can find (thesis §4.2.3)."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,7 @@ class Cell:
     zones: ZoneDistances = ZoneDistances()
     zone_overrides: dict[str, ZoneDistances] = field(default_factory=dict)
     description: str = ""
+    cameras: dict[str, Camera] = field(default_factory=dict)
 
     @property
     def object_names(self) -> tuple[str, ...]:

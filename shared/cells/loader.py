@@ -14,6 +14,7 @@ from shared.errors import FileFormatError, TeleprogError
 from shared.paths import ASSETS_DIR
 from shared.robots.loader import load_robot, shape_from_spec
 from shared.spatial import pose_to_transform
+from shared.vision.camera import Camera
 
 CELLS_DIR = ASSETS_DIR / "cells"
 DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
@@ -64,6 +65,7 @@ class _ObjectSpec(_Pose):
     held: bool = False
     color: tuple[int, int, int] = (180, 180, 180)
     shapes: list[_ShapeSpec] = Field(min_length=1)
+    keypoints: list[Vec3] = []
 
 
 class _FeatureSpec(_Pose):
@@ -77,6 +79,20 @@ class _ZoneSpec(_Strict):
     operation: float = Field(gt=0)
 
 
+class _CameraSpec(_Pose):
+    """A calibrated camera: pose (its +z is the optical axis, image v runs along +y) and the
+    pinhole intrinsics in pixels."""
+
+    name: str = Field(min_length=1)
+    frame: str = "world"
+    fx: float = Field(gt=0)
+    fy: float = Field(gt=0)
+    cx: float
+    cy: float
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+
+
 class _CellFile(_Strict):
     name: str
     description: str = ""
@@ -85,6 +101,7 @@ class _CellFile(_Strict):
     frames: dict[str, _FrameSpec] = {}
     objects: list[_ObjectSpec] = []
     features: list[_FeatureSpec] = []
+    cameras: list[_CameraSpec] = []
     zones: _ZoneSpec = _ZoneSpec(quasi=100.0, operation=20.0)
     zone_overrides: dict[str, _ZoneSpec] = {}
 
@@ -154,6 +171,7 @@ def load_cell(path: str | Path) -> Cell:
             CellObject(
                 name=ospec.name, world_T_object=frames[ospec.frame] @ pose(ospec), shapes=shapes,
                 movable=ospec.movable, held=ospec.held, color=ospec.color,
+                keypoints=np.array(ospec.keypoints, dtype=float).reshape(-1, 3) * ls,
             )
         )
     features: dict[str, Feature] = {}
@@ -161,6 +179,15 @@ def load_cell(path: str | Path) -> Cell:
         if fspec.frame not in frames:
             raise FileFormatError(path, f"frame {fspec.frame!r} is not defined; valid: {', '.join(frames)}", f"features.{i}.frame")
         features[fspec.name] = Feature(fspec.name, frames[fspec.frame] @ pose(fspec), fspec.kind)
+
+    cameras: dict[str, Camera] = {}
+    for i, cspec in enumerate(spec.cameras):
+        if cspec.frame not in frames:
+            raise FileFormatError(path, f"frame {cspec.frame!r} is not defined; valid: {', '.join(frames)}", f"cameras.{i}.frame")
+        if cspec.name in cameras:
+            raise FileFormatError(path, f"camera name {cspec.name!r} is used twice", f"cameras.{i}.name")
+        cameras[cspec.name] = Camera.pinhole(cspec.name, cspec.fx, cspec.fy, cspec.cx, cspec.cy,
+                                             frames[cspec.frame] @ pose(cspec), cspec.width, cspec.height)
 
     def zones(z: _ZoneSpec, where: str) -> ZoneDistances:
         if not z.operation < z.quasi:
@@ -185,4 +212,5 @@ def load_cell(path: str | Path) -> Cell:
         zones=zones(spec.zones, "zones"),
         zone_overrides=overrides,
         description=spec.description,
+        cameras=cameras,
     )

@@ -60,6 +60,9 @@ BASE = (DEFAULT_CELL).read_text()
         (lambda s: s.replace("[zone_overrides.table]", "[zone_overrides.chair]"), "zone_overrides.chair", "no object"),
         (lambda s: s.replace('shape = "box", size = [20.0, 20.0, 80.0]', 'shape = "mesh", mesh = "missing.stl"'), "objects.2.shapes.0.mesh", "does not exist"),
         (lambda s: s.replace("[robot]", "[robot"), None, "not valid TOML"),
+        (lambda s: s.replace("fx = 900.0", "fx = -900.0"), "cameras.0.fx", "greater than 0"),
+        (lambda s: s.replace('name = "front"\nxyz', 'name = "front"\nframe = "shelf"\nxyz'), "cameras.0.frame", "not defined"),
+        (lambda s: s.replace("keypoints = [[-10.0", "keypoints = [[-10.0, 1.0"), "objects.2.keypoints", ""),
     ],
 )
 def test_broken_cell_files_name_file_and_field(tmp_path, edit, field, message) -> None:
