@@ -8,25 +8,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from server.console_models import ArmChanged
-from server.session import Session
-from shared.cells.loader import DEFAULT_CELL, load_cell
-from shared.collision import SceneModel
 from shared.errors import InputError, UnknownNameError
 from shared.spatial import pose_to_transform
-
-
-@pytest.fixture(scope="module")
-def cell_and_scene():
-    cell = load_cell(DEFAULT_CELL)
-    return cell, SceneModel.from_cell(cell)
-
-
-@pytest.fixture
-def session(cell_and_scene):
-    cell, scene = cell_and_scene
-    s = Session(cell, scene=scene)
-    yield s
-    s.close()
 
 
 def seen(cell, world_T_peg: np.ndarray, noise_px: float = 0.0, seed: int = 0) -> np.ndarray:

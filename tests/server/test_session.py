@@ -20,23 +20,7 @@ from server.console_models import (
     Regime,
 )
 from server.session import Session
-from shared.cells.loader import DEFAULT_CELL, load_cell
-from shared.collision import SceneModel
 from shared.errors import InputError, JointLimitError
-
-
-@pytest.fixture(scope="module")
-def cell_and_scene():
-    cell = load_cell(DEFAULT_CELL)
-    return cell, SceneModel.from_cell(cell)
-
-
-@pytest.fixture
-def session(cell_and_scene):
-    cell, scene = cell_and_scene
-    s = Session(cell, scene=scene)
-    yield s
-    s.close()
 
 
 def _stroke(session: Session, dx: float, steps: int = 8) -> None:
