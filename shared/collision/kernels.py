@@ -15,6 +15,13 @@ Coherence between calls (the per-query state in ``scene.SceneData``):
   bounding sphere); if it stays positive the pair cannot touch and the tree is not entered.
 * ``wit[p]`` holds the last witness triangle pair; its distance at the new pose starts the
   branch-and-bound with a tight upper bound, so most of both trees is pruned at once.
+
+Distance descent (``_distance_pair``): depth first, nearer child pair first, pruning every node
+pair whose lower bound reaches the best distance found. A node pair's bound is the boxes'
+separating-axis gap and, where that does not prune, the gap of the swept rectangles (RSS) that
+contain the boxes (``_rect_gap``): on tessellated surfaces the box bound is centimetres slack
+at the corners of flat nodes, and the rectangles' cut the triangle pairs tested about 3.5x and
+the node pairs 1.5x (measured on the peg-in-hole cell).
 """
 
 from __future__ import annotations
@@ -25,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from shared.collision.distance import tri_tri_dist2
-from shared.collision.tri_tri import JIT, plane_gap, tri_tri_intersect
+from shared.collision.tri_tri import JIT, plane_gap, seg_seg_closest, tri_tri_intersect
 
 # indices into the stats counter array
 ST_PAIRS_TESTED = 0
@@ -36,7 +43,8 @@ ST_NODE_TESTS = 4
 ST_TRI_TESTS = 5
 ST_DIST_NODE = 6
 ST_DIST_TRI = 7
-N_STATS = 8
+ST_DIST_RECT = 8
+N_STATS = 9
 FULL_SAT = True
 
 
@@ -181,6 +189,98 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
 
 
 @njit(**JIT)
+def _corner(c, u, v, a, b, k):
+    """Corner k (0..3, in order round the rectangle) of the rectangle c +- a u +- b v."""
+    sa = a if (k == 0 or k == 3) else -a
+    sb = b if k < 2 else -b
+    return (c[0] + sa * u[0] + sb * v[0], c[1] + sa * u[1] + sb * v[1], c[2] + sa * u[2] + sb * v[2])
+
+
+@njit(**JIT)
+def _point_rect2(p, c, u, v, a, b):
+    """Squared distance from p to the rectangle c +- a u +- b v (u, v orthonormal)."""
+    d0 = p[0] - c[0]
+    d1 = p[1] - c[1]
+    d2 = p[2] - c[2]
+    s = min(max(d0 * u[0] + d1 * u[1] + d2 * u[2], -a), a)
+    r = min(max(d0 * v[0] + d1 * v[1] + d2 * v[2], -b), b)
+    e0 = d0 - s * u[0] - r * v[0]
+    e1 = d1 - s * u[1] - r * v[1]
+    e2 = d2 - s * u[2] - r * v[2]
+    return e0 * e0 + e1 * e1 + e2 * e2
+
+
+@njit(**JIT)
+def _one_side(c, w, q, u, v, a, b):
+    """Do the corners of rectangle (q, u, v, a, b) all lie strictly on one side of the plane
+    through c with normal w?"""
+    pos = 0
+    neg = 0
+    for k in range(4):
+        x = _corner(q, u, v, a, b, k)
+        s = (x[0] - c[0]) * w[0] + (x[1] - c[1]) * w[1] + (x[2] - c[2]) * w[2]
+        if s > 0.0:
+            pos += 1
+        elif s < 0.0:
+            neg += 1
+    return pos == 4 or neg == 4
+
+
+@njit(**JIT)
+def _rect_gap(nc, rs, i, j, R, t, stop):
+    """Lower bound on the distance between nodes i and j from their swept rectangles
+    (``obb_tree.swept_rectangles``): the rectangles' distance less both radii, or ``-inf`` when
+    it gives nothing useful.
+
+    Two rectangles that one's plane keeps apart do not meet, so their distance is the least of
+    the 16 edge-edge and 8 corner-rectangle distances; if neither plane separates them they may
+    cross and there is no bound here (``-inf``; the box bound stands). The candidates only
+    lower the running minimum, so once it falls below ``stop`` plus the radii the bound cannot
+    reach ``stop`` (the pair will not be pruned) and the work stops, answering ``-inf``.
+    """
+    ca = (nc[i, 0], nc[i, 1], nc[i, 2])
+    ua = (rs[i, 0], rs[i, 1], rs[i, 2])
+    va = (rs[i, 3], rs[i, 4], rs[i, 5])
+    wa = (rs[i, 6], rs[i, 7], rs[i, 8])
+    aa = rs[i, 9]
+    ba = rs[i, 10]
+    zero = (0.0, 0.0, 0.0)
+    cb = _xf(R, t, (nc[j, 0], nc[j, 1], nc[j, 2]))
+    ub = _xf(R, zero, (rs[j, 0], rs[j, 1], rs[j, 2]))
+    vb = _xf(R, zero, (rs[j, 3], rs[j, 4], rs[j, 5]))
+    wb = _xf(R, zero, (rs[j, 6], rs[j, 7], rs[j, 8]))
+    ab = rs[j, 9]
+    bb = rs[j, 10]
+    if not _one_side(ca, wa, cb, ub, vb, ab, bb) and not _one_side(cb, wb, ca, ua, va, aa, ba):
+        return -np.inf
+    radii = rs[i, 11] + rs[j, 11]
+    thr = stop + radii
+    thr2 = thr * thr
+    best = np.inf
+    for k in range(4):
+        d2 = _point_rect2(_corner(cb, ub, vb, ab, bb, k), ca, ua, va, aa, ba)
+        if d2 < best:
+            best = d2
+        d2 = _point_rect2(_corner(ca, ua, va, aa, ba, k), cb, ub, vb, ab, bb)
+        if d2 < best:
+            best = d2
+        if best < thr2:
+            return -np.inf
+    for k in range(4):
+        p0 = _corner(ca, ua, va, aa, ba, k)
+        p1 = _corner(ca, ua, va, aa, ba, (k + 1) % 4)
+        for m in range(4):
+            q0 = _corner(cb, ub, vb, ab, bb, m)
+            q1 = _corner(cb, ub, vb, ab, bb, (m + 1) % 4)
+            d2, _, _ = seg_seg_closest(p0, p1, q0, q1)
+            if d2 < best:
+                best = d2
+                if best < thr2:
+                    return -np.inf
+    return math.sqrt(best) - radii
+
+
+@njit(**JIT)
 def _body_aabb(Rw, tw, hv, hs, hn, b, out):
     for k in range(3):
         out[b, k] = np.inf
@@ -270,7 +370,7 @@ def _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, 
 
 
 @njit(**JIT)
-def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C, AC, wa, wb, stats):
+def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, t, C, AC, wa, wb, stats):
     """Exact distance of a pair known to be apart: (d, point on a, point on b, witness tris)."""
     best2 = np.inf
     bp = (np.nan, np.nan, np.nan)
@@ -319,8 +419,19 @@ def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C
         else:
             i1, j1, i2, j2 = i, nl[j], i, nr[j]
         stats[ST_DIST_NODE] += 2
-        g1 = max(_node_gap(nc, nax, nh, nrad, i1, j1, R, t, C, AC, False, ub, FULL_SAT), 0.0)
-        g2 = max(_node_gap(nc, nax, nh, nrad, i2, j2, R, t, C, AC, False, ub, FULL_SAT), 0.0)
+        # the boxes' separating-axis bound first (cheap when it prunes), then the swept
+        # rectangles' where the boxes could not prune the pair; not for two leaves, whose
+        # triangle distance costs little more than the rectangles' and is exact
+        g1 = _node_gap(nc, nax, nh, nrad, i1, j1, R, t, C, AC, False, ub, FULL_SAT)
+        if g1 < ub and (nl[i1] >= 0 or nl[j1] >= 0):
+            stats[ST_DIST_RECT] += 1
+            g1 = max(g1, _rect_gap(nc, rs, i1, j1, R, t, ub))
+        g2 = _node_gap(nc, nax, nh, nrad, i2, j2, R, t, C, AC, False, ub, FULL_SAT)
+        if g2 < ub and (nl[i2] >= 0 or nl[j2] >= 0):
+            stats[ST_DIST_RECT] += 1
+            g2 = max(g2, _rect_gap(nc, rs, i2, j2, R, t, ub))
+        g1 = max(g1, 0.0)
+        g2 = max(g2, 0.0)
         if top + 2 > sa.shape[0]:
             sa = _grow(sa, top + 2)
             sb = _grow(sb, top + 2)
@@ -342,7 +453,7 @@ def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C
 
 @njit(**JIT)
 def scene_check(
-    nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn,
+    nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rs,
     Rw, tw, pairs, mode, all_tris,
     lb, wit, Rprev, tprev, have_prev,
     hit, dist, wpa, wpb, out_p, out_a, out_b, stats,
@@ -433,7 +544,7 @@ def scene_check(
                 continue
             if m == 1:
                 continue
-        d, x, y, ka, kb = _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, R, t, C, AC,
+        d, x, y, ka, kb = _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, t, C, AC,
                                          wit[p, 0], wit[p, 1], stats)
         dist[p] = d
         lb[p] = d

@@ -228,3 +228,25 @@ def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) 
         sphere_radius=sphere_radius,
         hull_vertices=_hull_vertices(vertices),
     )
+
+
+def swept_rectangles(axes: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Each box as a swept-sphere rectangle (RSS) that contains it, for distance bounds.
+
+    The rectangle spans the box's two longest axes (same centre, half extents ``a >= b``) and
+    the sweeping radius is the smallest half extent ``r``: a box point ``(x, y, z)`` lies within
+    ``|z| <= r`` of the rectangle point ``(x, y, 0)``. For the flat nodes of a tessellated
+    surface (a leaf triangle has ``r`` = the padding) the distance between two rectangles, less
+    both radii, is far tighter than the boxes' separating-axis gap. Rows (``(N, 12)``): ``u``
+    (3), ``v`` (3), the rectangle's normal ``w`` (3), ``a``, ``b``, ``r``.
+    """
+    order = np.argsort(-half, axis=1, kind="stable")
+    n = len(half)
+    rows = np.arange(n)
+    out = np.empty((n, 12))
+    for k in range(3):
+        out[:, 3 * k:3 * k + 3] = axes[rows, :, order[:, k]]
+    out[:, 9] = half[rows, order[:, 0]]
+    out[:, 10] = half[rows, order[:, 1]]
+    out[:, 11] = half[rows, order[:, 2]]
+    return out

@@ -28,7 +28,7 @@ import numpy as np
 
 from shared.collision import kernels
 from shared.collision.mesh_model import BodyMesh, body_mesh
-from shared.collision.obb_tree import OBBTree, build_obb_tree
+from shared.collision.obb_tree import OBBTree, build_obb_tree, swept_rectangles
 from shared.errors import InputError, UnknownNameError
 
 DistanceSelection = Literal["all", "none"] | Iterable[str | tuple[str, str]] | None
@@ -148,9 +148,10 @@ class PackedScene:
         hv = np.concatenate([t.hull_vertices for t in trees])
         hs = hull_off[:-1].astype(np.int64)
         hn = np.array([len(t.hull_vertices) for t in trees], dtype=np.int64)
+        rss = swept_rectangles(nax, nh)
         arrays = tuple(
             _frozen(np.ascontiguousarray(a))
-            for a in (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn)
+            for a in (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rss)
         )
         return cls(arrays, max(t.depth for t in trees))
 
