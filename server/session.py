@@ -43,7 +43,6 @@ from pathlib import PurePath
 import numpy as np
 
 from server.console_models import (
-    FINAL_SENT,
     ArmChanged,
     ArmView,
     CollisionChanged,
@@ -55,10 +54,14 @@ from server.console_models import (
     DisplayModeChanged,
     DivergenceChanged,
     DivergenceView,
+    FINAL_SENT,
     LinkChanged,
     LinkView,
+    LocatedView,
     NotConnectedError,
     Notice,
+    PlacementChanged,
+    PlacementView,
     PredictedPathChanged,
     PredictedPathView,
     PreviewChanged,
@@ -79,11 +82,8 @@ from server.console_models import (
     SessionEvent,
     SessionSnapshot,
     StatementView,
-    LocatedView,
     TerrainChanged,
     TerrainView,
-    PlacementChanged,
-    PlacementView,
 )
 from server.terrain_layer import TerrainLayer
 from shared.cells.cell import Cell
