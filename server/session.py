@@ -1117,7 +1117,7 @@ class Session:
     async def _send(self, robot, comm: int, statements: list[Statement]) -> None:
         t0 = self._clock()
         # a round trip counts only if the link stayed up throughout (else it includes the outage)
-        steady = (robot.connected.is_set(), robot.reconnects)
+        was_up, reconnects = robot.connected.is_set(), robot.reconnects
         try:
             numbers = await robot.submit(statements)
         except TeleprogError as exc:  # CommunicationRejected
@@ -1133,7 +1133,7 @@ class Session:
             log.exception("submission %d failed", comm)
             self._emit([Notice(level="error", message=f"submission failed: {exc}")])
             return
-        if steady == (True, robot.reconnects) and robot.connected.is_set():
+        if was_up and robot.connected.is_set() and robot.reconnects == reconnects:
             self.note_round_trip(self._clock() - t0)
         with self._lock:
             items = [s for s in self._sent if s.comm == comm]

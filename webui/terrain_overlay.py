@@ -31,16 +31,12 @@ class TerrainOverlay:
         self._sensors: viser.LineSegmentsHandle | None = None
         self._contacts: viser.MeshHandle | None = None
         self._target: list[viser.SceneNodeHandle] = []
-        self._contact_count = 0
-        self._sensor_count = 0
-        self.visible = True
-        self._last: TerrainView | None = None
+        self._corners_shown: list = []
 
     # -- arm against ground ------------------------------------------------------------------
     def show(self, view: TerrainView | None, visible: bool = True) -> None:
         """Redraw for ``view``; ``visible=False`` hides the arm-dependent parts (the arm drawn
         is not the virtual arm: a preview or telepresence)."""
-        self._last, self.visible = view, visible
         with self.server.atomic():
             self._draw_segment(view if visible else None)
             self._draw_sensors(view if visible else None)
@@ -65,43 +61,32 @@ class TerrainOverlay:
             if self._sensors is not None:
                 self._sensors.remove()
                 self._sensors = None
-            self._sensor_count = 0
             return
         points = np.stack([np.asarray(sensors.starts), np.asarray(sensors.ends)], axis=1).astype(np.float32)
         colors = np.where(np.asarray(sensors.collides)[:, None, None], np.array(SENSOR_HIT), np.array(SENSOR_CLEAR))
         colors = np.broadcast_to(colors, points.shape).astype(np.uint8)
-        if self._sensors is None or self._sensor_count != len(points):
+        if self._sensors is None or len(self._sensors.points) != len(points):
             if self._sensors is not None:
                 self._sensors.remove()
             self._sensors = self.server.scene.add_line_segments(f"{self.ROOT}/sensors", points, colors, thickness=1.5, thickness_units="screen")
         else:
             self._sensors.points = points
             self._sensors.colors = colors
-        self._sensor_count = len(points)
 
     def _draw_contacts(self, view: TerrainView | None) -> None:
         corners = view.contact_corners if view is not None else []
+        if corners == self._corners_shown:
+            return  # the same triangles: nothing to send again
+        self._corners_shown = corners
+        if self._contacts is not None:
+            self._contacts.remove()
+            self._contacts = None
         if not corners:
-            if self._contacts is not None:
-                self._contacts.remove()
-                self._contacts = None
-            self._contact_count = 0
             return
         vertices = np.asarray(corners, dtype=np.float32).reshape(-1, 3) + np.array([0.0, 0.0, CONTACT_LIFT], np.float32)
         faces = np.arange(len(vertices), dtype=np.uint32).reshape(-1, 3)
-        if self._contacts is not None:
-            self._contacts.remove()
         self._contacts = self.server.scene.add_mesh_simple(
             f"{self.ROOT}/contacts", vertices, faces, color=CONTACT_COLOR, side="double", cast_shadow=False, receive_shadow=False)
-        self._contact_count = len(faces)
-
-    @property
-    def contact_count(self) -> int:
-        return self._contact_count
-
-    @property
-    def sensor_count(self) -> int:
-        return self._sensor_count
 
     # -- the picked target -------------------------------------------------------------------
     def show_target(self, placement: PlacementView | None) -> None:

@@ -35,7 +35,8 @@ class Camera:
     def project(self, world_p: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of world points (N, 3); ``InputError`` for a point behind the camera."""
         world_p = np.atleast_2d(np.asarray(world_p, dtype=float))
-        camera_p = world_p @ invert(self.world_T_camera)[:3, :3].T + invert(self.world_T_camera)[:3, 3]
+        camera_T_world = invert(self.world_T_camera)
+        camera_p = world_p @ camera_T_world[:3, :3].T + camera_T_world[:3, 3]
         if np.any(camera_p[:, 2] <= 0.0):
             raise InputError(f"camera {self.name!r}: a point lies behind the camera")
         h = camera_p @ self.K.T
