@@ -111,7 +111,12 @@ def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = Tr
         return HealthOut(status="ok", cell=c.session.cell.name, robot=c.session.robot.name)
 
     include_routers(app)
-    add_viser_routes(app, lambda: holder["state"].viser_port if "state" in holder else _no_scene(), prefix=settings.viser_prefix)
+    add_viser_routes(
+        app,
+        lambda: holder["state"].viser_port if "state" in holder else _no_scene(),
+        prefix=settings.viser_prefix,
+        gizmo_interval_ms=settings.gizmo_send_interval_ms or None,
+    )
     return app
 
 

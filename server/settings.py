@@ -18,6 +18,10 @@ class ConsoleSettings(BaseSettings):
     port: int = Field(8080, ge=0, le=65535, description="HTTP port of the console (0: any free port)")
     cell: Path = Field(DEFAULT_CELL, description="workcell file")
     viser_prefix: str = Field("/viser", description="path under which the 3D page is served")
+    gizmo_send_interval_ms: int = Field(
+        10, ge=0, le=1000,
+        description="the page sends the gizmo's drag updates at most this often, ms (0: viser's own 50 ms)",
+    )
     robot_url: str | None = Field(
         None, description="ws:// base URL of a robot or link to use (teleprog up starts its own when unset)"
     )

@@ -44,6 +44,8 @@ from fastapi.responses import RedirectResponse, Response
 from starlette.websockets import WebSocketState
 from websockets.asyncio.client import ClientConnection, connect
 
+from server.viser_page import served_page
+
 log = logging.getLogger(__name__)
 
 #: viser's own limit for one WebSocket message (``viser.infra.WebsockServer``).
@@ -83,15 +85,19 @@ def _close_code(code: int | None, default: int) -> int:
     return code if code in _SENDABLE or 3000 <= code <= 4999 else default
 
 
-def add_viser_routes(app: FastAPI, viser_port: Callable[[], int] | int, prefix: str = "/viser") -> None:
+def add_viser_routes(
+    app: FastAPI, viser_port: Callable[[], int] | int, prefix: str = "/viser", gizmo_interval_ms: int | None = None
+) -> None:
     """Serve viser's page under ``prefix + "/"`` and relay the WebSocket at ``prefix`` to viser.
 
     ``viser_port`` is the port viser listens on (127.0.0.1), or a callable returning it when the
     WebSocket connects (it may raise while viser is not running yet: the connection is refused).
+    ``gizmo_interval_ms``: the served page sends transform-gizmo drag updates at most this often
+    (``server.viser_page``); None keeps viser's own 50 ms.
     """
     prefix = "/" + prefix.strip("/")
     build_dir = CLIENT_BUILD_DIR
-    index_bytes = (build_dir / "index.html").read_bytes()
+    index_bytes = served_page((build_dir / "index.html").read_text("utf-8"), gizmo_interval_ms).encode("utf-8")
     index_gzip = gzip.compress(index_bytes, compresslevel=6)
 
     def resolve_port() -> int:

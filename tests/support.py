@@ -143,3 +143,35 @@ class ServerProcess:
         if self.proc is not None:
             stop_process(self.proc)
         return self.proc.returncode if self.proc else None
+
+
+class EventTimes:
+    """Arrival times (``time.perf_counter``) of one kind of the console's events on
+    ``/api/events``, read on a thread; ``close()`` when done."""
+
+    def __init__(self, console_url: str, kind: str = "arm") -> None:
+        import threading
+
+        from websockets.sync.client import connect
+
+        self.kind = kind
+        self.times: list[float] = []
+        self._ws = connect(console_url.replace("http", "ws", 1) + "/api/events", max_size=None, compression=None)
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        import json
+
+        try:
+            for raw in self._ws:
+                if json.loads(raw).get("type") == self.kind:
+                    self.times.append(time.perf_counter())
+        except Exception:  # noqa: BLE001 - the socket is closed at the end
+            pass
+
+    def between(self, t0: float, t1: float) -> list[float]:
+        return [t for t in self.times if t0 <= t <= t1]
+
+    def close(self) -> None:
+        self._ws.close()

@@ -17,6 +17,26 @@ from support import wait_for  # noqa: F401 - the page tests import it from here 
 
 HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message throttle
 
+# Pointer moves dispatched on the 3D canvas at a fixed rate, a sine sweep along x: the page's own
+# pointer handling (three.js raycasting in drei's PivotControls), its throttled sender and
+# WebSocket worker all run as for a real mouse. Headless Chromium hands real mouse moves to the
+# page once per drawn frame, and draws in software here (a few frames a second), so this is how a
+# test or benchmark feeds the page at a display's rate. Returns the dispatch times (page clock, ms).
+POINTER_SWEEP_JS = """([x0, y, amplitude, hz, seconds, period]) => new Promise((done) => {
+  const canvas = [...document.querySelectorAll("canvas")].find((c) => c.width > 0 && c.clientWidth > 300);
+  const t0 = performance.now(); const times = [];
+  const fire = () => {
+    const now = performance.now(); const t = (now - t0) / 1000;
+    if (t >= seconds) { done(times); return; }
+    canvas.dispatchEvent(new PointerEvent("pointermove", {
+      clientX: x0 + amplitude * Math.sin(2 * Math.PI * t / period), clientY: y, pointerId: 1,
+      pointerType: "mouse", isPrimary: true, buttons: 1, bubbles: true, cancelable: true}));
+    times.push(now);
+    setTimeout(fire, Math.max(0, t0 + times.length * 1000 / hz - performance.now()));
+  };
+  fire();
+})"""
+
 
 class ConsolePage:
     def __init__(self, page: Page, console, quick_clicks: bool = False) -> None:
@@ -35,8 +55,9 @@ class ConsolePage:
         return self.console.api("GET", "/api/session").json()
 
     # -- page --------------------------------------------------------------------------------
-    def open(self) -> None:
-        self.page.goto(self.console.url + "/")
+    def open(self, query: str = "") -> None:
+        """Open the console's page; ``query`` (e.g. ``"fixedDpr=0.1"``) goes to viser's page."""
+        self.page.goto(self.console.url + ("/viser/?" + query if query else "/"))
         self.page.wait_for_selector("canvas", timeout=30_000)
         self.page.get_by_role("button", name="STOP").wait_for(timeout=30_000)
         self.dismiss_notices(wait=15.0)
@@ -123,6 +144,13 @@ class ConsolePage:
         self.page.mouse.move(x1, y1, steps=steps)
         time.sleep(0.1)
         self.page.mouse.up()
+
+    def pointer_sweep(self, x0: float, y: float, amplitude: float, hz: float, seconds: float,
+                      period: float = 2.0) -> list[float]:
+        """With the mouse button held, feed the canvas ``hz`` pointer moves a second for
+        ``seconds``, sweeping ``amplitude`` px either side of ``x0`` (POINTER_SWEEP_JS); returns
+        the dispatch times (page clock, ms)."""
+        return self.page.evaluate(POINTER_SWEEP_JS, [x0, y, amplitude, hz, seconds, period])
 
     def drag_gizmo_x(self, pixels: float) -> list[float]:
         """Grab the gizmo's x arrow (the camera looks at the tool from -y, so world x points

@@ -1,0 +1,151 @@
+"""The 3D page the console serves: viser's built client, with the transform gizmo's drag updates
+sent at the console's rate instead of viser's fixed 20 per second.
+
+viser 1.1.1's client sends a gizmo's drag updates through a message sender throttled to 50 ms
+(``makeThrottledMessageSender(viewer, 50)`` in ``client/src/SceneTree.tsx``): whatever the
+console and the GPU, the virtual arm could follow a drag at most 20 times a second, and a mouse
+move waited up to 50 ms in the page before the console heard of it. The console answers a gizmo
+event in about 1.2 ms (``benchmarks/bench_console.py``), so the page may send one per drawn frame.
+
+viser ships its client as one ``index.html`` (``client/vite-plugin-compress-html.mts``): the
+inline style and module script are one zstd frame, written into the loader script's ``data-p``
+attribute in a base-88 alphabet, with ``data-ss`` and ``data-cs`` giving the style's and the
+script's decompressed sizes. :func:`gizmo_paced_page` decodes the frame, changes that one
+interval in the gizmo's case of the scene-node factory and encodes the page again; the loader
+and everything else are untouched. If the interval is not found exactly once (another viser
+build), :func:`served_page` logs a warning and serves viser's page unchanged.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import zstandard
+
+log = logging.getLogger(__name__)
+
+#: The 88 characters of viser's encoding, in digit order: printable ASCII (0x21-0x7e) without
+#: the six that need escaping in a double-quoted HTML attribute or a JavaScript string.
+BASE88_ALPHABET = "".join(chr(c) for c in range(0x21, 0x7F) if chr(c) not in "\"&<>'`")
+_DIGIT = np.full(128, -1, dtype=np.int64)
+_DIGIT[np.frombuffer(BASE88_ALPHABET.encode(), dtype=np.uint8)] = np.arange(88)
+_POWERS = 88 ** np.arange(4, -1, -1, dtype=np.int64)  # 5 digits, most significant first
+
+# The minified gizmo case: ``case`TransformControlsMessage`:{let{send:n,flush:r}=RL(t,50),...``
+# (names differ between builds; the case label, the destructuring and the literal do not).
+_GIZMO_SENDER = re.compile(
+    r"(case`TransformControlsMessage`:\{let\{send:[\w$]+,flush:[\w$]+\}=[\w$]+\([\w$]+,)(\d+)(\))"
+)
+_PAYLOAD = re.compile(r'data-p="([^"]*)"')
+
+
+class PagePatchError(ValueError):
+    """viser's page is not laid out as this module expects (another viser build)."""
+
+
+def decode_base88(text: str) -> bytes:
+    """Bytes from viser's base-88 text: 5 digits per 4 bytes, big-endian; a last group of k
+    digits holds k - 1 bytes."""
+    codes = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
+    digits = _DIGIT[codes]
+    if (digits < 0).any():
+        bad = int(np.flatnonzero(digits < 0)[0])
+        raise PagePatchError(f"character {text[bad]!r} at {bad} is not in the base-88 alphabet")
+    whole, rest = divmod(len(digits), 5)
+    if rest == 1:
+        raise PagePatchError("base-88 text ends in a group of one digit")
+    values = digits[: whole * 5].reshape(whole, 5) @ _POWERS
+    out = values.astype(">u4").tobytes()
+    if rest:
+        value = 0
+        for d in digits[whole * 5 :]:
+            value = value * 88 + int(d)
+        out += value.to_bytes(rest - 1, "big")
+    return out
+
+
+def encode_base88(data: bytes) -> str:
+    """The inverse of :func:`decode_base88`."""
+    whole, rest = divmod(len(data), 4)
+    values = np.frombuffer(data[: whole * 4], dtype=">u4").astype(np.int64)
+    digits = (values[:, None] // _POWERS) % 88
+    alphabet = np.frombuffer(BASE88_ALPHABET.encode(), dtype=np.uint8)
+    text = alphabet[digits].tobytes().decode("ascii")
+    if rest:
+        value = int.from_bytes(data[whole * 4 :], "big")
+        tail = []
+        for _ in range(rest + 1):
+            value, d = divmod(value, 88)
+            tail.append(BASE88_ALPHABET[d])
+        text += "".join(reversed(tail))
+    return text
+
+
+@dataclass(frozen=True)
+class PageBundle:
+    """The style sheet and the module script packed in viser's page."""
+
+    style: str
+    script: str
+
+
+def _size_attribute(html: str, name: str) -> int:
+    found = re.search(rf'data-{name}="(\d+)"', html)
+    if found is None:
+        raise PagePatchError(f"the page has no data-{name} attribute")
+    return int(found.group(1))
+
+
+def unpack(html: str) -> PageBundle:
+    """The style and script packed in ``html`` (viser's ``index.html``)."""
+    payload = _PAYLOAD.findall(html)
+    if len(payload) != 1:
+        raise PagePatchError(f"expected one data-p attribute in the page, found {len(payload)}")
+    style_size, script_size = _size_attribute(html, "ss"), _size_attribute(html, "cs")
+    raw = zstandard.ZstdDecompressor().decompress(decode_base88(payload[0]), max_output_size=style_size + script_size)
+    if len(raw) != style_size + script_size:
+        raise PagePatchError(f"the packed frame holds {len(raw)} bytes, data-ss + data-cs say {style_size + script_size}")
+    return PageBundle(raw[:style_size].decode("utf-8"), raw[style_size:].decode("utf-8"))
+
+
+def pack(html: str, bundle: PageBundle) -> str:
+    """``html`` with its packed style and script replaced by ``bundle``'s."""
+    style, script = bundle.style.encode("utf-8"), bundle.script.encode("utf-8")
+    frame = zstandard.ZstdCompressor(level=9).compress(style + script)
+    html = _PAYLOAD.sub(lambda _: f'data-p="{encode_base88(frame)}"', html, count=1)
+    html = re.sub(r'data-ss="\d+"', f'data-ss="{len(style)}"', html, count=1)
+    return re.sub(r'data-cs="\d+"', f'data-cs="{len(script)}"', html, count=1)
+
+
+def gizmo_interval_ms(html: str) -> int:
+    """The interval (ms) at which ``html``'s page sends a gizmo's drag updates."""
+    found = _GIZMO_SENDER.findall(unpack(html).script)
+    if len(found) != 1:
+        raise PagePatchError(f"expected one gizmo drag sender in the page's script, found {len(found)}")
+    return int(found[0][1])
+
+
+def gizmo_paced_page(html: str, interval_ms: int) -> str:
+    """``html`` (viser's page) with the gizmo's drag updates sent at most every ``interval_ms``."""
+    if not 1 <= interval_ms <= 1000:
+        raise ValueError(f"gizmo send interval must be 1-1000 ms, got {interval_ms}")
+    bundle = unpack(html)
+    script, count = _GIZMO_SENDER.subn(lambda m: f"{m.group(1)}{interval_ms}{m.group(3)}", bundle.script)
+    if count != 1:
+        raise PagePatchError(f"expected one gizmo drag sender in the page's script, found {count}")
+    return pack(html, PageBundle(bundle.style, script))
+
+
+def served_page(html: str, gizmo_interval: int | None) -> str:
+    """The page to serve: ``html`` paced at ``gizmo_interval`` ms, or unchanged when that is None
+    or the page cannot be paced (logged)."""
+    if gizmo_interval is None:
+        return html
+    try:
+        return gizmo_paced_page(html, gizmo_interval)
+    except (PagePatchError, zstandard.ZstdError, UnicodeDecodeError) as exc:
+        log.warning("serving viser's page unchanged: gizmo drag updates stay at viser's own rate (%s)", exc)
+        return html

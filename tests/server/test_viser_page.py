@@ -1,0 +1,91 @@
+"""The page the console serves: viser's packed client decoded, the gizmo's send interval changed,
+packed again (``server.viser_page``), checked on the installed viser's own page."""
+
+from __future__ import annotations
+
+import logging
+import os
+
+import pytest
+
+from server.viser_host import CLIENT_BUILD_DIR
+from server.viser_page import (
+    BASE88_ALPHABET,
+    PageBundle,
+    PagePatchError,
+    decode_base88,
+    encode_base88,
+    gizmo_interval_ms,
+    gizmo_paced_page,
+    pack,
+    served_page,
+    unpack,
+)
+
+
+@pytest.fixture(scope="module")
+def viser_html() -> str:
+    return (CLIENT_BUILD_DIR / "index.html").read_text("utf-8")
+
+
+def test_base88_matches_the_loaders_arithmetic() -> None:
+    assert len(BASE88_ALPHABET) == 88 and not set("\"&<>'`") & set(BASE88_ALPHABET)
+    assert encode_base88(b"\x00\x00\x00\x00") == "!!!!!"
+    # 0xFFFFFFFF = 4294967295: its five base-88 digits, most significant first
+    value, digits = 0xFFFFFFFF, []
+    for _ in range(5):
+        value, d = divmod(value, 88)
+        digits.append(BASE88_ALPHABET[d])
+    assert encode_base88(b"\xff" * 4) == "".join(reversed(digits))
+    # a last group of k bytes takes k + 1 digits
+    assert [len(encode_base88(bytes(n))) for n in range(1, 9)] == [2, 3, 4, 5, 7, 8, 9, 10]
+
+
+@pytest.mark.parametrize("size", [0, 1, 2, 3, 4, 5, 7, 8, 1001])
+def test_base88_round_trip(size: int) -> None:
+    data = os.urandom(size)
+    assert decode_base88(encode_base88(data)) == data
+
+
+def test_bad_base88_text_is_refused() -> None:
+    with pytest.raises(PagePatchError, match="not in the base-88 alphabet"):
+        decode_base88("!!!!<")
+    with pytest.raises(PagePatchError, match="group of one digit"):
+        decode_base88("!!!!!!")
+
+
+def test_viser_page_unpacks_and_packs_back(viser_html: str) -> None:
+    bundle = unpack(viser_html)
+    assert "TransformControlsMessage" in bundle.script and bundle.style.strip()
+    assert unpack(pack(viser_html, bundle)) == bundle
+    assert gizmo_interval_ms(viser_html) == 50  # viser 1.1.1's own
+
+
+def test_paced_page_changes_only_the_gizmo_interval(viser_html: str) -> None:
+    paced = gizmo_paced_page(viser_html, 10)
+    assert gizmo_interval_ms(paced) == 10
+    before, after = unpack(viser_html), unpack(paced)
+    assert after.style == before.style
+    # the scripts differ in one place: the sender's interval, just after the gizmo's case label
+    a, b = before.script, after.script
+    start = next(i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y)
+    assert (a[start : start + 2], b[start : start + 2]) == ("50", "10") and a[start + 2 :] == b[start + 2 :]
+    assert a.rfind("case`TransformControlsMessage`", 0, start) > start - 80
+    # the page around the packed frame (the loader, the decoder) is untouched
+    head, tail = viser_html.split('data-p="', 1)[0], viser_html.rsplit('data-cs="', 1)[1].split('"', 1)[1]
+    assert paced.startswith(head) and paced.endswith(tail)
+
+
+def test_bad_intervals_and_foreign_pages_are_refused(viser_html: str, caplog) -> None:
+    with pytest.raises(ValueError, match="1-1000 ms"):
+        gizmo_paced_page(viser_html, 0)
+    bundle = unpack(viser_html)
+    no_gizmo = pack(viser_html, PageBundle(bundle.style, bundle.script.replace("TransformControlsMessage", "Renamed")))
+    with pytest.raises(PagePatchError, match="found 0"):
+        gizmo_paced_page(no_gizmo, 10)
+    with caplog.at_level(logging.WARNING, logger="server.viser_page"):
+        assert served_page(no_gizmo, 10) == no_gizmo
+    assert "viser's own rate" in caplog.text
+    assert served_page(viser_html, None) == viser_html
+    with pytest.raises(PagePatchError, match="data-p"):
+        unpack("<html></html>")
