@@ -115,6 +115,9 @@ class DrivePanel:
             "drive",
             lambda: self.session.jog_tool_to(goal, frame=self.frame.value, constraint=constraint, motion=self.motion.value),
         )
+        # the session's events have redrawn the arm by now: send them at once rather than at the
+        # end of viser's window (up to 1/60 s), which was most of a drag update's round trip
+        self.server.flush()
 
     def _refresh_gizmo(self) -> None:
         """Offer only the handles the chosen constraint allows (the jog rules still apply)."""
