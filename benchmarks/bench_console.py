@@ -18,6 +18,12 @@ Three measurements (issue 7, item 11):
   page receives) and the session's ``arm`` events per second. Headless Chromium renders WebGL in
   software (SwiftShader) here: the frame times are those of a CPU renderer sharing two cores with
   the console, not of an operator's GPU.
+* **page input**: in the same page, the gizmo pressed with the real mouse, 60 pointer moves a
+  second dispatched on the 3D canvas (``ConsolePage.pointer_sweep``; headless Chromium would hand
+  real mouse moves over only once per drawn frame). Recorded in the page's clock at the boundary
+  of viser's WebSocket worker: when the page hands over a gizmo update, and when a batch of scene
+  messages that moves the virtual arm comes back. Per move: time to the next send, to the reply
+  that moves the arm (the scene update), and to the first drawn frame after that.
 
 Goals: 30 scene updates per second or more while dragging; event-to-scene p95 under 50 ms.
 """
@@ -182,6 +188,37 @@ START_FRAMES_JS = """() => {
 }"""
 STOP_FRAMES_JS = "() => { const tp = window.__tp; tp.run += 1; return {t: tp.t, d: tp.d, long: tp.long}; }"
 
+# Installed before the page's own scripts: viser talks to its WebSocket through a worker. Record,
+# in the page's clock, when the page hands the worker a gizmo update to send, and when a decoded
+# batch of messages arrives from it and whether the batch moves the virtual arm (/robot/link*).
+RECORD_SOCKET_JS = """
+(() => {
+  const rec = window.__tpInput = {sent: [], batches: []};
+  const Original = window.Worker;
+  if (!Original) return;
+  window.Worker = class extends Original {
+    constructor(...args) {
+      super(...args);
+      this.addEventListener("message", (e) => {
+        const d = e.data;
+        if (!d || d.type !== "message_batch") return;
+        const arm = d.messages.some((m) => typeof m.name === "string" && m.name.startsWith("/robot/link")
+                                         && /Position|Orientation|Pose/.test(m.type));
+        rec.batches.push([performance.now(), arm]);
+      });
+    }
+    postMessage(data, ...rest) {
+      if (data && data.type === "send" && data.message && data.message.type === "TransformControlsUpdateMessage")
+        rec.sent.push(performance.now());
+      return super.postMessage(data, ...rest);
+    }
+  };
+})();
+"""
+RESET_SOCKET_RECORD_JS = "() => { window.__tpInput.sent = []; window.__tpInput.batches = []; }"
+READ_SOCKET_RECORD_JS = "() => window.__tpInput"
+
+
 # viser messages that change the 3D scene (the rest change the GUI panel)
 SCENE_UPDATES = {"SetPositionMessage", "SetOrientationMessage", "SetSceneNodeVisibilityMessage",
                  "SceneNodeUpdateMessage", "RemoveSceneNodeMessage", "SetBoneOrientationMessage",
@@ -238,6 +275,46 @@ def _frame_stats(t_ms: list[float], draws: list[int], long_tasks: list[list[floa
     }
 
 
+def _input_stats(dispatched: list[float], sent: list[float], batches: list[list], frame_t: list[float],
+                 frame_d: list[int]) -> dict:
+    """Latencies (page clock, ms) from each dispatched pointer move to (a) the page's next gizmo
+    send, (b) the arrival of the console's reply that moves the arm and (c) the start of the first
+    animation frame after it in which WebGL drew. Replies are paired with sends in order (the
+    console answers every update); when the counts differ the first arm batch after the send is
+    used and the pairing is reported as ``by_time``."""
+    d, s = np.asarray(dispatched, float), np.asarray(sent, float)
+    arm = np.asarray([t for t, moves_arm in batches if moves_arm], float)
+    t, draws = np.asarray(frame_t, float), np.asarray(frame_d, float)
+    drawn = t[np.flatnonzero(np.diff(draws) > 0) + 1] if len(t) > 1 else np.array([])
+    paired = len(arm) == len(s)
+    to_send, to_update, to_drawn = [], [], []
+    for when in d:
+        k = np.searchsorted(s, when)
+        if k == len(s):
+            continue  # the last moves: no send after them within the window
+        reply = arm[k] if paired else arm[np.searchsorted(arm, s[k])] if np.searchsorted(arm, s[k]) < len(arm) else np.nan
+        if not np.isfinite(reply):
+            continue
+        to_send.append(s[k] - when)
+        to_update.append(reply - when)
+        j = np.searchsorted(drawn, reply)
+        if j < len(drawn):
+            to_drawn.append(drawn[j] - when)
+
+    def pct(values: list[float]) -> dict:
+        v = np.asarray(values, float)
+        if not len(v):
+            return {"p50": float("nan"), "p95": float("nan"), "max": float("nan"), "n": 0}
+        return {"p50": float(np.percentile(v, 50)), "p95": float(np.percentile(v, 95)), "max": float(v.max()), "n": int(len(v))}
+
+    span = (d[-1] - d[0]) / 1e3 if len(d) > 1 else float("nan")
+    return {"seconds": span, "moves_per_s": len(d) / span, "gizmo_sends_per_s": len(s) / span,
+            "arm_updates_per_s": len(arm) / span, "drawn_frames_per_s": len(drawn) / span,
+            "pairing": "in_order" if paired else "by_time",
+            "move_to_send_ms": pct(to_send), "move_to_scene_update_ms": pct(to_update),
+            "move_to_drawn_frame_ms": pct(to_drawn)}
+
+
 def _find_gizmo_grab(ui, cx: float, cy: float, scale: float) -> float:
     """Offset right of the canvas centre where a short drag moves the tool along world x (the
     camera looks at the tool from -y; offsets found for a 900 px high view, times ``scale``);
@@ -266,44 +343,18 @@ def _settle(page, limit_s: float = 20.0) -> None:
             return
 
 
-class _ArmEvents:
-    """Times of the session's ``arm`` events on /api/events, read on a thread."""
-
-    def __init__(self, url: str) -> None:
-        import threading
-
-        from websockets.sync.client import connect
-
-        self.times: list[float] = []
-        self.ws = connect(url.replace("http", "ws") + "/api/events", max_size=None, compression=None)
-        self.thread = threading.Thread(target=self._read, daemon=True)
-        self.thread.start()
-
-    def _read(self) -> None:
-        try:
-            for raw in self.ws:
-                if json.loads(raw).get("type") == "arm":
-                    self.times.append(time.perf_counter())
-        except Exception:  # noqa: BLE001 - closed at the end
-            pass
-
-    def between(self, t0: float, t1: float) -> int:
-        return sum(1 for t in self.times if t0 <= t <= t1)
-
-    def close(self) -> None:
-        self.ws.close()
-
-
 def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.0, period_s: float = 2.0,
-            viewport: tuple[int, int] = (1400, 900)) -> dict:
-    """Drag the gizmo in the page for ``seconds`` and measure frames and scene updates there."""
+            viewport: tuple[int, int] = (1400, 900), input_seconds: float = 5.0, input_hz: float = 60.0,
+            fixed_dpr: float | None = None) -> dict:
+    """Drag the gizmo in the page for ``seconds`` and measure frames and scene updates there; then
+    hold it pressed and feed ``input_hz`` pointer moves a second for ``input_seconds`` (0: skip)."""
     import tempfile
 
     from playwright.sync_api import sync_playwright
 
     sys.path.insert(0, str(ROOT / "tests" / "browser"))
     from console_page import ConsolePage
-    from support import CHROMIUM_ARGS, start_console, stop_process
+    from support import CHROMIUM_ARGS, EventTimes, start_console, stop_process
 
     executable = os.environ.get("CHROMIUM", "/usr/bin/chromium")
     if not Path(executable).exists():
@@ -323,6 +374,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             context = chromium.new_context(viewport={"width": viewport[0], "height": viewport[1]})
             page = context.new_page()
             page.add_init_script(COUNT_DRAWS_JS)
+            page.add_init_script(RECORD_SOCKET_JS)
 
             def on_socket(ws) -> None:
                 if "/viser" in ws.url:
@@ -330,7 +382,9 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
 
             page.on("websocket", on_socket)
             ui = ConsolePage(page, console)
-            ui.open()
+            # viser's URL setting fixedDpr: the 3D view drawn at that many device pixels per CSS
+            # pixel (by default viser adapts it between 0.75 and 1 by the measured frame rate)
+            ui.open(f"fixedDpr={fixed_dpr}" if fixed_dpr else "")
             renderer = page.evaluate(
                 "() => { const gl = document.createElement('canvas').getContext('webgl2');"
                 " const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');"
@@ -340,7 +394,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             scale = page.locator("canvas").first.bounding_box()["height"] / 900.0
             grab = _find_gizmo_grab(ui, cx, cy, scale)
             amplitude_px *= scale
-            events = _ArmEvents(console.url)
+            events = EventTimes(console.url)
             page.mouse.move(cx - 200, cy + 200)
             _settle(page)
             # the page at rest (the robot idle, its telemetry still arriving)
@@ -350,8 +404,28 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             i1 = time.perf_counter()
             raw = page.evaluate(STOP_FRAMES_JS)
             idle = _frame_stats(raw["t"], raw["d"], raw["long"])
-            # the drag: press on the x arrow, sweep it left and right, let go at the end
             x0 = cx + grab
+            # pointer moves at a display's rate, fed to the gizmo pressed with the real mouse
+            page_input = None
+            if input_seconds:
+                page.mouse.move(x0, cy)
+                time.sleep(0.15)
+                page.mouse.down()
+                page.evaluate(START_FRAMES_JS)
+                page.evaluate(RESET_SOCKET_RECORD_JS)
+                e0 = time.perf_counter()
+                dispatched = ui.pointer_sweep(x0, cy, amplitude_px, input_hz, input_seconds, period_s)
+                e1 = time.perf_counter()
+                time.sleep(0.3)  # the last replies
+                raw_input = page.evaluate(STOP_FRAMES_JS)
+                record = page.evaluate(READ_SOCKET_RECORD_JS)
+                page.mouse.up()
+                page_input = _input_stats(dispatched, record["sent"], record["batches"], raw_input["t"], raw_input["d"])
+                page_input["requested_hz"] = input_hz
+                if not record["sent"]:
+                    raise RuntimeError("the pointer moves did not drag the gizmo (no update sent)")
+                time.sleep(0.5)
+            # the drag with the real mouse: press on the x arrow, sweep it left and right, let go
             page.mouse.move(x0, cy)
             time.sleep(0.15)
             page.mouse.down()
@@ -371,7 +445,9 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             statements = len(ui.session()["program"]["entries"]) - entries_before
             context.close()
             chromium.close()
-        arm_events_drag, arm_events_idle = events.between(t0, t1), events.between(i0, i1)
+        arm_events_drag, arm_events_idle = len(events.between(t0, t1)), len(events.between(i0, i1))
+        if page_input is not None:
+            page_input["session_arm_events_per_s"] = len(events.between(e0, e1)) / (e1 - e0)
     finally:
         if events is not None:
             events.close()
@@ -391,7 +467,8 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
                  "statements_generated": statements})
     idle.update({"arm_events_per_s": arm_events_idle / (i1 - i0)})
     uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    return {"renderer": renderer, "viewport": list(viewport), "drag": drag, "idle": idle, "uptime": uptime,
+    return {"renderer": renderer, "viewport": list(viewport), "fixed_dpr": fixed_dpr, "drag": drag, "idle": idle,
+            "page_input": page_input, "uptime": uptime,
             "load_average": list(os.getloadavg())}
 
 
@@ -401,6 +478,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--browser-seconds", type=float, default=10.0,
                    help="seconds of gizmo dragging in headless Chromium (0: skip)")
     p.add_argument("--browser-viewport", default="1400x900", help="page size in CSS pixels, WIDTHxHEIGHT")
+    p.add_argument("--input-seconds", type=float, default=5.0,
+                   help="seconds of pointer moves fed to the pressed gizmo in the page (0: skip)")
+    p.add_argument("--input-hz", type=float, default=60.0, help="rate of those pointer moves")
+    p.add_argument("--browser-dpr", type=float, default=None,
+                   help="draw the 3D view at this fixed device pixel ratio (viser's fixedDpr; default: viser adapts it)")
     p.add_argument("--json", action="store_true")
 
 
@@ -410,7 +492,8 @@ def main_with(args: argparse.Namespace) -> int:
         out["end_to_end"] = end_to_end(args.e2e_events)
     if args.browser_seconds:
         width, height = (int(v) for v in args.browser_viewport.lower().split("x"))
-        out["browser"] = browser(args.browser_seconds, viewport=(width, height))
+        out["browser"] = browser(args.browser_seconds, viewport=(width, height), input_seconds=args.input_seconds,
+                                 input_hz=args.input_hz, fixed_dpr=args.browser_dpr)
     out["load_average"] = os.getloadavg()[0]
     if args.json:
         print(json.dumps(out, default=float))
@@ -432,6 +515,15 @@ def main_with(args: argparse.Namespace) -> int:
                       f"({f['windows_per_s']:.1f} viser windows/s); {f['arm_events_per_s']:.1f} session arm events/s; "
                       f"{f['draw_calls_per_rendered_frame']:.0f} draw calls per rendered frame; page JavaScript in long tasks "
                       f"{100 * f['main_thread_long_task_share']:.0f}% of the time")
+            if b["page_input"] is not None:
+                q = b["page_input"]
+                print(f"page input: {q['moves_per_s']:.1f} pointer moves/s -> {q['gizmo_sends_per_s']:.1f} gizmo sends/s -> "
+                      f"{q['arm_updates_per_s']:.1f} arm scene updates/s received (goal 30; {q['session_arm_events_per_s']:.1f} "
+                      f"session arm events/s), {q['drawn_frames_per_s']:.1f} drawn frames/s; move -> scene update "
+                      f"p50 {q['move_to_scene_update_ms']['p50']:.1f} ms, p95 {q['move_to_scene_update_ms']['p95']:.1f} ms (goal 50); "
+                      f"move -> send p95 {q['move_to_send_ms']['p95']:.1f} ms; move -> drawn frame p50 "
+                      f"{q['move_to_drawn_frame_ms']['p50']:.0f} ms, p95 {q['move_to_drawn_frame_ms']['p95']:.0f} ms "
+                      f"(pairing {q['pairing']})")
             print(f"browser drag: {b['drag']['mouse_moves_per_s']:.0f} mouse moves/s, "
                   f"{b['drag']['statements_generated']} statements generated; renderer {b['renderer']}; {b['uptime']}")
         print(f"load average {out['load_average']:.1f}")
