@@ -115,7 +115,7 @@ def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = Tr
         app,
         lambda: holder["state"].viser_port if "state" in holder else _no_scene(),
         prefix=settings.viser_prefix,
-        gizmo_interval_ms=settings.gizmo_send_interval_ms or None,
+        send_intervals_ms=settings.page_send_intervals_ms(),
     )
     return app
 

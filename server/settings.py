@@ -45,3 +45,7 @@ class ConsoleSettings(BaseSettings):
         """A copy with the given non-None values replaced (command-line flags), validated."""
         values = {k: v for k, v in overrides.items() if v is not None}
         return type(self).model_validate({**self.model_dump(), **values})
+
+    def page_send_intervals_ms(self) -> dict[str, int]:
+        """The senders of viser's page to re-pace (``server.viser_page.SENDERS``), by name."""
+        return {"gizmo": self.gizmo_send_interval_ms} if self.gizmo_send_interval_ms else {}

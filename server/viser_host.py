@@ -33,7 +33,7 @@ import asyncio
 import gzip
 import logging
 import mimetypes
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -86,18 +86,21 @@ def _close_code(code: int | None, default: int) -> int:
 
 
 def add_viser_routes(
-    app: FastAPI, viser_port: Callable[[], int] | int, prefix: str = "/viser", gizmo_interval_ms: int | None = None
+    app: FastAPI,
+    viser_port: Callable[[], int] | int,
+    prefix: str = "/viser",
+    send_intervals_ms: Mapping[str, int] | None = None,
 ) -> None:
     """Serve viser's page under ``prefix + "/"`` and relay the WebSocket at ``prefix`` to viser.
 
     ``viser_port`` is the port viser listens on (127.0.0.1), or a callable returning it when the
     WebSocket connects (it may raise while viser is not running yet: the connection is refused).
-    ``gizmo_interval_ms``: the served page sends transform-gizmo drag updates at most this often
-    (``server.viser_page``); None keeps viser's own 50 ms.
+    ``send_intervals_ms``: the served page's senders re-paced, by name (``{"gizmo": 10}``:
+    ``server.viser_page.SENDERS``); empty or None keeps viser's page as built.
     """
     prefix = "/" + prefix.strip("/")
     build_dir = CLIENT_BUILD_DIR
-    index_bytes = served_page((build_dir / "index.html").read_text("utf-8"), gizmo_interval_ms).encode("utf-8")
+    index_bytes = served_page((build_dir / "index.html").read_text("utf-8"), send_intervals_ms or {}).encode("utf-8")
     index_gzip = gzip.compress(index_bytes, compresslevel=6)
 
     def resolve_port() -> int:

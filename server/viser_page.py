@@ -6,20 +6,24 @@ viser 1.1.1's client sends a gizmo's drag updates through a message sender throt
 console and the GPU, the virtual arm could follow a drag at most 20 times a second, and a mouse
 move waited up to 50 ms in the page before the console heard of it. The console answers a gizmo
 event in about 1.2 ms (``benchmarks/bench_console.py``), so the page may send one per drawn frame.
+(GUI inputs such as the joint sliders go through another 50 ms sender, left as viser builds it:
+in this environment a slider drag reaches the console 4-5 times a second with either interval.)
 
 viser ships its client as one ``index.html`` (``client/vite-plugin-compress-html.mts``): the
 inline style and module script are one zstd frame, written into the loader script's ``data-p``
 attribute in a base-88 alphabet, with ``data-ss`` and ``data-cs`` giving the style's and the
-script's decompressed sizes. :func:`gizmo_paced_page` decodes the frame, changes that one
-interval in the gizmo's case of the scene-node factory and encodes the page again; the loader
-and everything else are untouched. If the interval is not found exactly once (another viser
-build), :func:`served_page` logs a warning and serves viser's page unchanged.
+script's decompressed sizes. :func:`paced_page` decodes the frame, changes the interval
+literal of each named sender (``SENDERS``: the gizmo's, in its case of the scene-node factory)
+and encodes the page again; the loader and everything else are untouched. If an interval is not
+found exactly once (another viser build), :func:`served_page` logs a warning and serves viser's
+page unchanged.
 """
 
 from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,11 +38,14 @@ _DIGIT = np.full(128, -1, dtype=np.int64)
 _DIGIT[np.frombuffer(BASE88_ALPHABET.encode(), dtype=np.uint8)] = np.arange(88)
 _POWERS = 88 ** np.arange(4, -1, -1, dtype=np.int64)  # 5 digits, most significant first
 
-# The minified gizmo case: ``case`TransformControlsMessage`:{let{send:n,flush:r}=RL(t,50),...``
-# (names differ between builds; the case label, the destructuring and the literal do not).
-_GIZMO_SENDER = re.compile(
-    r"(case`TransformControlsMessage`:\{let\{send:[\w$]+,flush:[\w$]+\}=[\w$]+\([\w$]+,)(\d+)(\))"
-)
+# The senders, as minified: each pattern's second group is the interval (ms). Names differ
+# between builds; the case label, the destructuring and the surrounding literals do not.
+SENDERS: dict[str, re.Pattern[str]] = {
+    # ``case`TransformControlsMessage`:{let{send:n,flush:r}=RL(t,50),...``
+    "gizmo": re.compile(
+        r"(case`TransformControlsMessage`:\{let\{send:[\w$]+,flush:[\w$]+\}=[\w$]+\([\w$]+,)(\d+)(\))"
+    ),
+}
 _PAYLOAD = re.compile(r'data-p="([^"]*)"')
 
 
@@ -120,32 +127,40 @@ def pack(html: str, bundle: PageBundle) -> str:
     return re.sub(r'data-cs="\d+"', f'data-cs="{len(script)}"', html, count=1)
 
 
-def gizmo_interval_ms(html: str) -> int:
-    """The interval (ms) at which ``html``'s page sends a gizmo's drag updates."""
-    found = _GIZMO_SENDER.findall(unpack(html).script)
-    if len(found) != 1:
-        raise PagePatchError(f"expected one gizmo drag sender in the page's script, found {len(found)}")
-    return int(found[0][1])
+def send_intervals_ms(html: str) -> dict[str, int]:
+    """The interval (ms) of each of ``SENDERS`` in ``html``'s page."""
+    script = unpack(html).script
+    out = {}
+    for name, pattern in SENDERS.items():
+        found = pattern.findall(script)
+        if len(found) != 1:
+            raise PagePatchError(f"expected one {name} sender in the page's script, found {len(found)}")
+        out[name] = int(found[0][1])
+    return out
 
 
-def gizmo_paced_page(html: str, interval_ms: int) -> str:
-    """``html`` (viser's page) with the gizmo's drag updates sent at most every ``interval_ms``."""
-    if not 1 <= interval_ms <= 1000:
-        raise ValueError(f"gizmo send interval must be 1-1000 ms, got {interval_ms}")
+def paced_page(html: str, intervals_ms: Mapping[str, int]) -> str:
+    """``html`` (viser's page) with each named sender (``SENDERS``) sending at most every so many ms."""
     bundle = unpack(html)
-    script, count = _GIZMO_SENDER.subn(lambda m: f"{m.group(1)}{interval_ms}{m.group(3)}", bundle.script)
-    if count != 1:
-        raise PagePatchError(f"expected one gizmo drag sender in the page's script, found {count}")
+    script = bundle.script
+    for name, interval in intervals_ms.items():
+        if name not in SENDERS:
+            raise ValueError(f"no sender named {name!r}; known: {', '.join(SENDERS)}")
+        if not 1 <= interval <= 1000:
+            raise ValueError(f"{name} send interval must be 1-1000 ms, got {interval}")
+        script, count = SENDERS[name].subn(lambda m, ms=interval: f"{m.group(1)}{ms}{m.group(3)}", script)
+        if count != 1:
+            raise PagePatchError(f"expected one {name} sender in the page's script, found {count}")
     return pack(html, PageBundle(bundle.style, script))
 
 
-def served_page(html: str, gizmo_interval: int | None) -> str:
-    """The page to serve: ``html`` paced at ``gizmo_interval`` ms, or unchanged when that is None
-    or the page cannot be paced (logged)."""
-    if gizmo_interval is None:
+def served_page(html: str, intervals_ms: Mapping[str, int]) -> str:
+    """The page to serve: ``html`` paced by ``intervals_ms``, or unchanged when that is empty or
+    the page cannot be paced (logged)."""
+    if not intervals_ms:
         return html
     try:
-        return gizmo_paced_page(html, gizmo_interval)
+        return paced_page(html, intervals_ms)
     except (PagePatchError, zstandard.ZstdError, UnicodeDecodeError) as exc:
-        log.warning("serving viser's page unchanged: gizmo drag updates stay at viser's own rate (%s)", exc)
+        log.warning("serving viser's page unchanged: drags stay at viser's own 20 updates a second (%s)", exc)
         return html

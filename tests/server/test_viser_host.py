@@ -27,7 +27,7 @@ from fastapi.responses import RedirectResponse
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from server.viser_page import gizmo_interval_ms, unpack
+from server.viser_page import send_intervals_ms, unpack
 from server.viser_host import (
     CLIENT_BUILD_DIR,
     VISER_SUBPROTOCOL,
@@ -105,14 +105,14 @@ def viser_server() -> Iterator[viser.ViserServer]:
     assert port_is_closed(port), f"viser port {port} still accepts connections"
 
 
-def make_app(viser_port: Any, gizmo_interval_ms: int | None = None) -> FastAPI:
+def make_app(viser_port: Any, send_intervals_ms: dict[str, int] | None = None) -> FastAPI:
     app = FastAPI()
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:
         return RedirectResponse("/viser/")
 
-    add_viser_routes(app, viser_port, gizmo_interval_ms=gizmo_interval_ms)
+    add_viser_routes(app, viser_port, send_intervals_ms=send_intervals_ms)
     return app
 
 
@@ -184,13 +184,13 @@ def test_page_is_served_with_its_assets(relay_url: str) -> None:
 
 
 def test_page_can_be_served_with_the_gizmo_paced_faster(viser_server: viser.ViserServer) -> None:
-    with serve_in_thread(make_app(viser_server.get_port, gizmo_interval_ms=12)) as url:
+    with serve_in_thread(make_app(viser_server.get_port, send_intervals_ms={"gizmo": 12})) as url:
         with httpx.Client(base_url=url, timeout=10.0) as client:
             page = client.get("/viser/")
             plain = client.get("/viser/", headers={"Accept-Encoding": "identity"})
     original = (CLIENT_BUILD_DIR / "index.html").read_text("utf-8")
     assert page.status_code == 200 and page.content == plain.content
-    assert gizmo_interval_ms(page.text) == 12 and gizmo_interval_ms(original) == 50
+    assert send_intervals_ms(page.text) == {"gizmo": 12} and send_intervals_ms(original) == {"gizmo": 50}
     assert unpack(page.text).style == unpack(original).style
 
 

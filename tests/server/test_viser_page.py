@@ -15,9 +15,9 @@ from server.viser_page import (
     PagePatchError,
     decode_base88,
     encode_base88,
-    gizmo_interval_ms,
-    gizmo_paced_page,
     pack,
+    paced_page,
+    send_intervals_ms,
     served_page,
     unpack,
 )
@@ -58,15 +58,15 @@ def test_viser_page_unpacks_and_packs_back(viser_html: str) -> None:
     bundle = unpack(viser_html)
     assert "TransformControlsMessage" in bundle.script and bundle.style.strip()
     assert unpack(pack(viser_html, bundle)) == bundle
-    assert gizmo_interval_ms(viser_html) == 50  # viser 1.1.1's own
+    assert send_intervals_ms(viser_html) == {"gizmo": 50}  # viser 1.1.1's own
 
 
 def test_paced_page_changes_only_the_gizmo_interval(viser_html: str) -> None:
-    paced = gizmo_paced_page(viser_html, 10)
-    assert gizmo_interval_ms(paced) == 10
+    paced = paced_page(viser_html, {"gizmo": 10})
+    assert send_intervals_ms(paced) == {"gizmo": 10}
     before, after = unpack(viser_html), unpack(paced)
     assert after.style == before.style
-    # the scripts differ in one place: the sender's interval, just after the gizmo's case label
+    # the scripts differ in one place: that sender's interval, just after its anchor
     a, b = before.script, after.script
     start = next(i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y)
     assert (a[start : start + 2], b[start : start + 2]) == ("50", "10") and a[start + 2 :] == b[start + 2 :]
@@ -78,14 +78,16 @@ def test_paced_page_changes_only_the_gizmo_interval(viser_html: str) -> None:
 
 def test_bad_intervals_and_foreign_pages_are_refused(viser_html: str, caplog) -> None:
     with pytest.raises(ValueError, match="1-1000 ms"):
-        gizmo_paced_page(viser_html, 0)
+        paced_page(viser_html, {"gizmo": 0})
+    with pytest.raises(ValueError, match="no sender named 'camera'"):
+        paced_page(viser_html, {"camera": 10})
     bundle = unpack(viser_html)
     no_gizmo = pack(viser_html, PageBundle(bundle.style, bundle.script.replace("TransformControlsMessage", "Renamed")))
-    with pytest.raises(PagePatchError, match="found 0"):
-        gizmo_paced_page(no_gizmo, 10)
+    with pytest.raises(PagePatchError, match="one gizmo sender in the page's script, found 0"):
+        paced_page(no_gizmo, {"gizmo": 10})
     with caplog.at_level(logging.WARNING, logger="server.viser_page"):
-        assert served_page(no_gizmo, 10) == no_gizmo
-    assert "viser's own rate" in caplog.text
-    assert served_page(viser_html, None) == viser_html
+        assert served_page(no_gizmo, {"gizmo": 10}) == no_gizmo
+    assert "viser's own 20 updates a second" in caplog.text
+    assert served_page(viser_html, {}) == viser_html
     with pytest.raises(PagePatchError, match="data-p"):
         unpack("<html></html>")
