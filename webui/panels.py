@@ -76,6 +76,7 @@ class DrivePanel:
                 return
             value = float(np.radians(event.target.value))
             self.actions.run(f"turn J{joint}", lambda: self.session.set_joint(joint, value))
+            self.server.flush()  # as for the gizmo: the new pose goes out now, not at the window's end
             self._release_soon()
 
         return callback
