@@ -33,6 +33,8 @@ DAMPING_FLOOR = 1e-13
 SAME_SOLUTION = 1e-5
 #: a start is abandoned when its error has not halved over this many iterations
 STALL_WINDOW = 20
+#: halvings of a Gauss-Newton step tried before a fallback start is given up
+LINE_SEARCH_HALVINGS = 20
 
 
 def _wrap(q: np.ndarray) -> np.ndarray:
@@ -126,11 +128,7 @@ def _solve_batch(
         jac_t = jac.transpose(0, 2, 1)
         lhs = jac_t @ jac + (boost[idx] * (cost[idx] + DAMPING_FLOOR))[:, None, None] * eye
         rhs = jac_t @ err[idx][:, :, None]
-        try:
-            step = np.linalg.solve(lhs, rhs)[:, :, 0]
-        except np.linalg.LinAlgError:  # numerically singular: least squares, row by row
-            step = np.stack([np.linalg.lstsq(a, b[:, 0], rcond=None)[0] for a, b in zip(lhs, rhs)])
-        q_try = q[idx] + step
+        q_try = q[idx] + _solve_steps(lhs, rhs)
         err_try = _pose_errors(robot, data, q_try, base_R_goal, base_p_goal)
         cost_try = 0.5 * np.einsum("ij,ij->i", err_try, err_try)
         better = cost_try < cost[idx]
@@ -147,6 +145,59 @@ def _solve_batch(
     return q
 
 
+def _gauss_newton_batch(
+    robot: Robot, data: pin.Data, seeds: np.ndarray, base_R_goal: np.ndarray, base_p_goal: np.ndarray
+) -> np.ndarray:
+    """Undamped Gauss-Newton with a halving line search from every seed; rows as
+    :func:`_solve_batch` returns them (NaN where the goal was not reached).
+
+    The fallback for poses close to (not on) a singularity. There the smallest singular value of
+    the Jacobian is tiny, Levenberg-Marquardt's damping stays far above its square, and a start
+    creeps into a valley a few tens of micrometres from the goal and stalls. The plain
+    Gauss-Newton direction keeps the weak direction; the line search tames its length."""
+    q = np.array(seeds, dtype=float)
+    err = _pose_errors(robot, data, q, base_R_goal, base_p_goal)
+    cost = 0.5 * np.einsum("ij,ij->i", err, err)
+    alive = np.ones(len(q), dtype=bool)
+    converged = np.zeros(len(q), dtype=bool)
+    eye = np.eye(robot.dof)
+    for _ in range(MAX_ITERATIONS):
+        done = alive & (np.sqrt(2.0 * cost) < TOLERANCE)
+        converged |= done
+        alive &= ~done
+        idx = np.flatnonzero(alive)
+        if idx.size == 0:
+            break
+        jac = _jacobians(robot, data, q[idx])
+        jac_t = jac.transpose(0, 2, 1)
+        step = _solve_steps(jac_t @ jac + DAMPING_FLOOR * eye, jac_t @ err[idx][:, :, None])
+        pending, scale = np.arange(idx.size), 1.0
+        for _ in range(LINE_SEARCH_HALVINGS):
+            rows = idx[pending]
+            q_try = q[rows] + scale * step[pending]
+            err_try = _pose_errors(robot, data, q_try, base_R_goal, base_p_goal)
+            cost_try = 0.5 * np.einsum("ij,ij->i", err_try, err_try)
+            better = cost_try < cost[rows]
+            took = rows[better]
+            q[took], err[took], cost[took] = q_try[better], err_try[better], cost_try[better]
+            pending = pending[~better]
+            if pending.size == 0:
+                break
+            scale *= 0.5
+        alive[idx[pending]] = False  # no step along its direction lowers the error
+    converged |= alive & (np.sqrt(2.0 * cost) < 100.0 * TOLERANCE)
+    q[~converged] = np.nan
+    return q
+
+
+def _solve_steps(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve the stacked systems ``lhs @ x = rhs`` ((k, n, n), (k, n, 1)) -> (k, n)."""
+    try:
+        return np.linalg.solve(lhs, rhs)[:, :, 0]
+    except np.linalg.LinAlgError:  # numerically singular: least squares, row by row
+        return np.stack([np.linalg.lstsq(a, b[:, 0], rcond=None)[0] for a, b in zip(lhs, rhs)])
+
+
 def dls_ik_all(robot: Robot, base_T_tool: np.ndarray, q_ref: np.ndarray) -> list[np.ndarray]:
     """Every distinct joint vector (rad, folded into (-pi, pi]) that the starts reached for the
     tool pose ``base_T_tool`` (4, 4); the one reached from ``q_ref`` first. Empty if none."""
@@ -155,7 +206,10 @@ def dls_ik_all(robot: Robot, base_T_tool: np.ndarray, q_ref: np.ndarray) -> list
     base_p_goal = np.ascontiguousarray(base_T_tool[:3, 3])
     data = robot.new_data()
     spread = _spread(robot.dof, tuple(robot.lower), tuple(robot.upper), SPREAD_SEEDS)
-    reached = _solve_batch(robot, data, np.vstack([np.asarray(q_ref, dtype=float), spread]), base_R_goal, base_p_goal)
+    seeds = np.vstack([np.asarray(q_ref, dtype=float), spread])
+    reached = _solve_batch(robot, data, seeds, base_R_goal, base_p_goal)
+    if np.isnan(reached[:, 0]).all():  # none: perhaps close to a singularity (see the fallback)
+        reached = _gauss_newton_batch(robot, data, seeds, base_R_goal, base_p_goal)
     reached = _wrap(reached[~np.isnan(reached[:, 0])])
     # keep the first of every group of starts that reached the same solution (modulo 2 pi)
     apart = np.max(np.abs(_wrap(reached[:, None, :] - reached[None, :, :])), axis=2) >= SAME_SOLUTION

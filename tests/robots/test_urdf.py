@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from shared.errors import FileFormatError
@@ -143,6 +143,7 @@ def test_jacobian_matches_finite_differences(ur5) -> None:
 # -- inverse kinematics ----------------------------------------------------------------------------
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(-np.pi, np.pi), min_size=6, max_size=6))
+@example(values=[0.0, 0.0, 0.5, -2.0, 6.103515625e-05, 0.0])  # wrist 60 microradians from singular
 def test_ik_then_fk_reaches_the_target(values: list[float]) -> None:
     robot = load_robot(UR5)
     q = np.array(values)
@@ -169,6 +170,7 @@ def test_ik_then_fk_reaches_the_target(values: list[float]) -> None:
         [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],  # stretched arm and aligned wrist: the zero pose
         [25.0, -40.0, 0.0, 60.0, 35.0, -80.0],  # stretched arm: the target is on the reach boundary
         [25.0, -40.0, 70.0, 60.0, 0.0, -80.0],  # wrist singular: axes 4 and 6 aligned
+        [25.0, -40.0, 70.0, 60.0, 0.002, -80.0],  # wrist nearly singular (35 microradians)
         [-120.0, -100.0, 180.0, 10.0, 45.0, 5.0],  # elbow folded back completely
     ],
 )
