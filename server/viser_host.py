@@ -100,7 +100,9 @@ def add_viser_routes(
     """
     prefix = "/" + prefix.strip("/")
     build_dir = CLIENT_BUILD_DIR
-    index_bytes = served_page((build_dir / "index.html").read_text("utf-8"), send_intervals_ms or {}).encode("utf-8")
+    index_bytes = (build_dir / "index.html").read_bytes()
+    if send_intervals_ms:
+        index_bytes = served_page(index_bytes.decode("utf-8"), send_intervals_ms).encode("utf-8")
     index_gzip = gzip.compress(index_bytes, compresslevel=6)
 
     def resolve_port() -> int:

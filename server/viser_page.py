@@ -56,6 +56,9 @@ class PagePatchError(ValueError):
 def decode_base88(text: str) -> bytes:
     """Bytes from viser's base-88 text: 5 digits per 4 bytes, big-endian; a last group of k
     digits holds k - 1 bytes."""
+    if not text.isascii():
+        bad = next(i for i, ch in enumerate(text) if not ch.isascii())
+        raise PagePatchError(f"character {text[bad]!r} at {bad} is not in the base-88 alphabet")
     codes = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
     digits = _DIGIT[codes]
     if (digits < 0).any():
@@ -65,11 +68,15 @@ def decode_base88(text: str) -> bytes:
     if rest == 1:
         raise PagePatchError("base-88 text ends in a group of one digit")
     values = digits[: whole * 5].reshape(whole, 5) @ _POWERS
+    if (values >= 2**32).any():
+        raise PagePatchError(f"base-88 group {int(np.argmax(values >= 2**32))} holds more than 4 bytes")
     out = values.astype(">u4").tobytes()
     if rest:
         value = 0
         for d in digits[whole * 5 :]:
             value = value * 88 + int(d)
+        if value >= 256 ** (rest - 1):
+            raise PagePatchError(f"the last base-88 group holds more than {rest - 1} bytes")
         out += value.to_bytes(rest - 1, "big")
     return out
 
@@ -121,13 +128,14 @@ def unpack(html: str) -> PageBundle:
 def pack(html: str, bundle: PageBundle) -> str:
     """``html`` with its packed style and script replaced by ``bundle``'s."""
     style, script = bundle.style.encode("utf-8"), bundle.script.encode("utf-8")
+    # level 9: 0.05 s at start-up; the page grows about 7% over viser's level-19 frame (0.8 s)
     frame = zstandard.ZstdCompressor(level=9).compress(style + script)
     html = _PAYLOAD.sub(lambda _: f'data-p="{encode_base88(frame)}"', html, count=1)
     html = re.sub(r'data-ss="\d+"', f'data-ss="{len(style)}"', html, count=1)
     return re.sub(r'data-cs="\d+"', f'data-cs="{len(script)}"', html, count=1)
 
 
-def send_intervals_ms(html: str) -> dict[str, int]:
+def read_send_intervals_ms(html: str) -> dict[str, int]:
     """The interval (ms) of each of ``SENDERS`` in ``html``'s page."""
     script = unpack(html).script
     out = {}
@@ -141,13 +149,14 @@ def send_intervals_ms(html: str) -> dict[str, int]:
 
 def paced_page(html: str, intervals_ms: Mapping[str, int]) -> str:
     """``html`` (viser's page) with each named sender (``SENDERS``) sending at most every so many ms."""
-    bundle = unpack(html)
-    script = bundle.script
     for name, interval in intervals_ms.items():
         if name not in SENDERS:
             raise ValueError(f"no sender named {name!r}; known: {', '.join(SENDERS)}")
         if not 1 <= interval <= 1000:
             raise ValueError(f"{name} send interval must be 1-1000 ms, got {interval}")
+    bundle = unpack(html)
+    script = bundle.script
+    for name, interval in intervals_ms.items():
         script, count = SENDERS[name].subn(lambda m, ms=interval: f"{m.group(1)}{ms}{m.group(3)}", script)
         if count != 1:
             raise PagePatchError(f"expected one {name} sender in the page's script, found {count}")

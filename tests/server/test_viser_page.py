@@ -3,8 +3,11 @@ packed again (``server.viser_page``), checked on the installed viser's own page.
 
 from __future__ import annotations
 
+import gzip
+import json
 import logging
 import os
+import re
 
 import pytest
 
@@ -17,7 +20,7 @@ from server.viser_page import (
     encode_base88,
     pack,
     paced_page,
-    send_intervals_ms,
+    read_send_intervals_ms,
     served_page,
     unpack,
 )
@@ -26,6 +29,17 @@ from server.viser_page import (
 @pytest.fixture(scope="module")
 def viser_html() -> str:
     return (CLIENT_BUILD_DIR / "index.html").read_text("utf-8")
+
+
+def test_base88_matches_the_loaders_alphabet_and_data(viser_html: str) -> None:
+    # the loader script in viser's page spells its alphabet out, and carries a gzipped WASM
+    # decoder in base-88 written by viser's own encoder (its length leaves a short last group)
+    loader_alphabet = json.loads(re.search(r"const A=(\"(?:[^\"\\\\]|\\\\.)*\")", viser_html).group(1))
+    assert loader_alphabet == BASE88_ALPHABET
+    wasm_text = json.loads(re.search(r"const gzWasm=(\"[^\"]*\")", viser_html).group(1))
+    assert len(wasm_text) % 5 != 0
+    assert gzip.decompress(decode_base88(wasm_text))[:4] == b"\x00asm"
+    assert encode_base88(decode_base88(wasm_text)) == wasm_text
 
 
 def test_base88_matches_the_loaders_arithmetic() -> None:
@@ -52,18 +66,25 @@ def test_bad_base88_text_is_refused() -> None:
         decode_base88("!!!!<")
     with pytest.raises(PagePatchError, match="group of one digit"):
         decode_base88("!!!!!!")
+    with pytest.raises(PagePatchError, match="not in the base-88 alphabet"):
+        decode_base88("!!!\u00e9!")
+    largest = BASE88_ALPHABET[-1]
+    with pytest.raises(PagePatchError, match="more than 4 bytes"):
+        decode_base88(largest * 5)
+    with pytest.raises(PagePatchError, match="more than 1 bytes"):
+        decode_base88(largest * 2)
 
 
 def test_viser_page_unpacks_and_packs_back(viser_html: str) -> None:
     bundle = unpack(viser_html)
     assert "TransformControlsMessage" in bundle.script and bundle.style.strip()
     assert unpack(pack(viser_html, bundle)) == bundle
-    assert send_intervals_ms(viser_html) == {"gizmo": 50}  # viser 1.1.1's own
+    assert read_send_intervals_ms(viser_html) == {"gizmo": 50}  # viser 1.1.1's own
 
 
 def test_paced_page_changes_only_the_gizmo_interval(viser_html: str) -> None:
     paced = paced_page(viser_html, {"gizmo": 10})
-    assert send_intervals_ms(paced) == {"gizmo": 10}
+    assert read_send_intervals_ms(paced) == {"gizmo": 10}
     before, after = unpack(viser_html), unpack(paced)
     assert after.style == before.style
     # the scripts differ in one place: that sender's interval, just after its anchor
