@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
 import httpx
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect as connect_ws
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 ARTIFACTS = PROJECT_DIR / "test-artifacts"
@@ -147,31 +151,42 @@ class ServerProcess:
 
 class EventTimes:
     """Arrival times (``time.perf_counter``) of one kind of the console's events on
-    ``/api/events``, read on a thread; ``close()`` when done."""
+    ``/api/events``, read on a thread. Use as a context manager (or ``close()``); an error of the
+    reader other than the socket closing is raised again by ``between`` and ``close``."""
 
     def __init__(self, console_url: str, kind: str = "arm") -> None:
-        import threading
-
-        from websockets.sync.client import connect
-
         self.kind = kind
         self.times: list[float] = []
-        self._ws = connect(console_url.replace("http", "ws", 1) + "/api/events", max_size=None, compression=None)
+        self._error: BaseException | None = None
+        self._ws = connect_ws(console_url.replace("http", "ws", 1) + "/api/events", max_size=None, compression=None)
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
 
     def _read(self) -> None:
-        import json
-
         try:
             for raw in self._ws:
                 if json.loads(raw).get("type") == self.kind:
                     self.times.append(time.perf_counter())
-        except Exception:  # noqa: BLE001 - the socket is closed at the end
+        except ConnectionClosed:
             pass
+        except Exception as exc:  # noqa: BLE001 - handed to the test by between() and close()
+            self._error = exc
+
+    def _check(self) -> None:
+        if self._error is not None:
+            raise RuntimeError(f"reading /api/events failed: {self._error!r}") from self._error
 
     def between(self, t0: float, t1: float) -> list[float]:
+        self._check()
         return [t for t in self.times if t0 <= t <= t1]
 
     def close(self) -> None:
         self._ws.close()
+        self._thread.join(timeout=5.0)
+        self._check()
+
+    def __enter__(self) -> "EventTimes":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()

@@ -24,12 +24,11 @@ pytestmark = pytest.mark.browser
 def test_gizmo_updates_reach_the_console_faster_than_viser_paces_them(console, page) -> None:
     ui = ConsolePage(page, console)
     ui.open()
-    ui.drag_gizmo_x(30)  # the camera looks at the tool: this finds a grab point on the x arrow
+    ui.drag_gizmo_x(30)  # a first drag: the page has drawn the gizmo and the arm has moved once
     cx, cy = ui.canvas_center()
     x_start = ui.session()["arm"]["tool_xyz_mm"][0]
-    events = EventTimes(console.url)
-    try:
-        for grab in (40, 55, 30, 70, 25):
+    with EventTimes(console.url) as events:
+        for grab in (40, 55, 30, 70, 25):  # where the x arrow is (as in ConsolePage.drag_gizmo_x)
             page.mouse.move(cx + grab, cy)
             time.sleep(0.15)
             page.mouse.down()
@@ -41,11 +40,12 @@ def test_gizmo_updates_reach_the_console_faster_than_viser_paces_them(console, p
             moves = len(events.between(t0, t1))
             if moves >= 10:
                 break
-    finally:
-        events.close()
+    assert moves >= 10, "no grab point on the gizmo's x arrow moved the arm"
     assert len(dispatched) >= 150, f"the page ran only {len(dispatched)} of 200 pointer moves"
     rate = moves / (t1 - t0)
-    assert rate > 35.0, (
+    # viser's page cannot pass 20 a second (one send per 50 ms, counted over 2 s); this one
+    # reached about 70 here, so 25 leaves room for a loaded machine
+    assert rate > 25.0, (
         f"the arm moved {rate:.1f} times a second for {len(dispatched) / (t1 - t0):.0f} pointer moves a second: "
         "gizmo updates still come at viser's 20 a second or less"
     )
