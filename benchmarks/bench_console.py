@@ -37,6 +37,7 @@ import os
 import subprocess
 import sys
 import time
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -159,7 +160,7 @@ def end_to_end(events: int) -> dict:
 # was actually redrawn can be told from an idle one (viser renders on demand).
 COUNT_DRAWS_JS = """
 (() => {
-  window.__tp = {draws: 0, run: 0, t: [], d: [], long: []};
+  window.__tp = {draws: 0, run: 0, t: [], d: [], long: [], drawStarts: [], lastDraw: -1e9};
   try {  // main-thread tasks over 50 ms: the page's own JavaScript, as opposed to the renderer
     new PerformanceObserver((list) => {
       for (const e of list.getEntries()) window.__tp.long.push([e.startTime, e.duration]);
@@ -170,7 +171,12 @@ COUNT_DRAWS_JS = """
     for (const name of ["drawElements", "drawArrays", "drawElementsInstanced", "drawArraysInstanced", "drawRangeElements"]) {
       const original = ctx.prototype[name];
       if (typeof original !== "function") continue;
-      ctx.prototype[name] = function (...args) { window.__tp.draws++; return original.apply(this, args); };
+      ctx.prototype[name] = function (...args) {
+        const tp = window.__tp; const now = performance.now();
+        if (now - tp.lastDraw > 4) tp.drawStarts.push(now);  // the first draw call of a drawn frame
+        tp.lastDraw = now; tp.draws++;
+        return original.apply(this, args);
+      };
     }
   }
 })();
@@ -189,8 +195,9 @@ START_FRAMES_JS = """() => {
 STOP_FRAMES_JS = "() => { const tp = window.__tp; tp.run += 1; return {t: tp.t, d: tp.d, long: tp.long}; }"
 
 # Installed before the page's own scripts: viser talks to its WebSocket through a worker. Record,
-# in the page's clock, when the page hands the worker a gizmo update to send, and when a decoded
-# batch of messages arrives from it and whether the batch moves the virtual arm (/robot/link*).
+# in the page's clock, when the page hands the worker a gizmo update to send (with the gizmo's x),
+# and when a decoded batch of messages arrives from it, whether the batch moves the virtual arm
+# (/robot/link*) and the x of the last link it places (to pair replies with sends by content).
 RECORD_SOCKET_JS = """
 (() => {
   const rec = window.__tpInput = {sent: [], batches: []};
@@ -202,21 +209,26 @@ RECORD_SOCKET_JS = """
       this.addEventListener("message", (e) => {
         const d = e.data;
         if (!d || d.type !== "message_batch") return;
-        const arm = d.messages.some((m) => typeof m.name === "string" && m.name.startsWith("/robot/link")
-                                         && /Position|Orientation|Pose/.test(m.type));
-        rec.batches.push([performance.now(), arm]);
+        let arm = false, link = -1, x = null;
+        for (const m of d.messages) {
+          const found = typeof m.name === "string" && /^\\/robot\\/link(\\d+)$/.exec(m.name);
+          if (!found || !/Position|Orientation|Pose/.test(m.type)) continue;
+          arm = true;
+          if (m.position && +found[1] > link) { link = +found[1]; x = m.position[0]; }
+        }
+        rec.batches.push([performance.now(), arm, x]);
       });
     }
     postMessage(data, ...rest) {
       if (data && data.type === "send" && data.message && data.message.type === "TransformControlsUpdateMessage")
-        rec.sent.push(performance.now());
+        rec.sent.push([performance.now(), data.message.position[0]]);
       return super.postMessage(data, ...rest);
     }
   };
 })();
 """
-RESET_SOCKET_RECORD_JS = "() => { window.__tpInput.sent = []; window.__tpInput.batches = []; }"
-READ_SOCKET_RECORD_JS = "() => window.__tpInput"
+RESET_SOCKET_RECORD_JS = "() => { const r = window.__tpInput; r.sent = []; r.batches = []; window.__tp.drawStarts = []; }"
+READ_SOCKET_RECORD_JS = "() => ({...window.__tpInput, drawStarts: window.__tp.drawStarts})"
 
 
 # viser messages that change the 3D scene (the rest change the GUI panel)
@@ -275,44 +287,106 @@ def _frame_stats(t_ms: list[float], draws: list[int], long_tasks: list[list[floa
     }
 
 
-def _input_stats(dispatched: list[float], sent: list[float], batches: list[list], frame_t: list[float],
-                 frame_d: list[int]) -> dict:
-    """Latencies (page clock, ms) from each dispatched pointer move to (a) the page's next gizmo
-    send, (b) the arrival of the console's reply that moves the arm and (c) the start of the first
-    animation frame after it in which WebGL drew. Replies are paired with sends in order (the
-    console answers every update); when the counts differ the first arm batch after the send is
-    used and the pairing is reported as ``by_time``."""
-    d, s = np.asarray(dispatched, float), np.asarray(sent, float)
-    arm = np.asarray([t for t, moves_arm in batches if moves_arm], float)
-    t, draws = np.asarray(frame_t, float), np.asarray(frame_d, float)
-    drawn = t[np.flatnonzero(np.diff(draws) > 0) + 1] if len(t) > 1 else np.array([])
-    paired = len(arm) == len(s)
-    to_send, to_update, to_drawn = [], [], []
-    for when in d:
-        k = np.searchsorted(s, when)
-        if k == len(s):
-            continue  # the last moves: no send after them within the window
-        reply = arm[k] if paired else arm[np.searchsorted(arm, s[k])] if np.searchsorted(arm, s[k]) < len(arm) else np.nan
-        if not np.isfinite(reply):
-            continue
-        to_send.append(s[k] - when)
-        to_update.append(reply - when)
-        j = np.searchsorted(drawn, reply)
-        if j < len(drawn):
-            to_drawn.append(drawn[j] - when)
+@dataclass(frozen=True)
+class Percentiles:
+    """p50, p95 and max of a sample (ms), and its size."""
 
-    def pct(values: list[float]) -> dict:
+    p50: float
+    p95: float
+    max: float
+    n: int
+
+    @classmethod
+    def of(cls, values: list[float]) -> "Percentiles":
         v = np.asarray(values, float)
         if not len(v):
-            return {"p50": float("nan"), "p95": float("nan"), "max": float("nan"), "n": 0}
-        return {"p50": float(np.percentile(v, 50)), "p95": float(np.percentile(v, 95)), "max": float(v.max()), "n": int(len(v))}
+            return cls(float("nan"), float("nan"), float("nan"), 0)
+        return cls(float(np.percentile(v, 50)), float(np.percentile(v, 95)), float(v.max()), int(len(v)))
 
-    span = (d[-1] - d[0]) / 1e3 if len(d) > 1 else float("nan")
-    return {"seconds": span, "moves_per_s": len(d) / span, "gizmo_sends_per_s": len(s) / span,
-            "arm_updates_per_s": len(arm) / span, "drawn_frames_per_s": len(drawn) / span,
-            "pairing": "in_order" if paired else "by_time",
-            "move_to_send_ms": pct(to_send), "move_to_scene_update_ms": pct(to_update),
-            "move_to_drawn_frame_ms": pct(to_drawn)}
+
+@dataclass(frozen=True)
+class PageInputStats:
+    """The page fed pointer moves: rates over the moves' span and per-move latencies (page clock)."""
+
+    seconds: float
+    requested_hz: float
+    moves_per_s: float
+    gizmo_sends_per_s: float
+    arm_updates_per_s: float
+    drawn_frames_per_s: float
+    #: share of the sends whose reply was found by content (the rest were superseded in flight)
+    sends_answered: float
+    move_to_send_ms: Percentiles
+    move_to_scene_update_ms: Percentiles
+    move_to_drawn_frame_ms: Percentiles
+    session_arm_events_per_s: float = float("nan")
+
+
+#: a reply answers a send when its last link's x is the send's gizmo x plus the fixed offset
+#: between that link and the tool (the drag translates along x only), to this tolerance (m)
+SAME_X_M = 1e-6
+
+
+def _reply_times(sent: list[list[float]], batches: list[list]) -> tuple[np.ndarray, float]:
+    """For each send, when the page received the scene update answering it, paired by content.
+
+    The drag translates the tool along x, so the last link's x in a reply equals the gizmo's x in
+    the send it answers plus a constant (the median of reply x minus latest earlier send x). A
+    reply answers the latest earlier send with that x. A send without a reply of its own (its
+    update was superseded or refused) takes the first reply to a later send: the pose shown then
+    already includes its move. NaN where no later reply came in the window. Also returns the
+    share of sends answered by a reply of their own."""
+    send_t = np.array([t for t, _ in sent], float)
+    send_x = np.array([x for _, x in sent], float)
+    replies = [(t, x) for t, moves_arm, x in batches if moves_arm and x is not None]
+    answered = np.full(len(send_t), np.inf)
+    if not replies or not len(send_t):
+        return np.full(len(send_t), np.nan), 0.0
+    rep_t = np.array([t for t, _ in replies], float)
+    rep_x = np.array([x for _, x in replies], float)
+    latest = np.searchsorted(send_t, rep_t) - 1
+    offset = float(np.median(rep_x[latest >= 0] - send_x[latest[latest >= 0]]))
+    for t, x, last in zip(rep_t, rep_x, latest):
+        match = np.flatnonzero(np.abs(send_x[: last + 1] + offset - x) < SAME_X_M)
+        if match.size:
+            answered[match[-1]] = min(answered[match[-1]], t)
+    effective = np.minimum.accumulate(answered[::-1])[::-1]  # a later send's reply covers earlier ones
+    return np.where(np.isfinite(effective), effective, np.nan), float(np.isfinite(answered).mean())
+
+
+def _input_stats(dispatched: list[float], sent: list[list[float]], batches: list[list], draw_starts: list[float],
+                 requested_hz: float) -> PageInputStats:
+    """Latencies (page clock, ms) from each dispatched pointer move to (a) the page's next gizmo
+    send, (b) the arrival of the scene update answering that send (``_reply_times``) and (c) the
+    first draw call of the next drawn frame after it; rates counted over the moves' span."""
+    d = np.asarray(dispatched, float)
+    reply, answered_share = _reply_times(sent, batches)
+    send_t = np.array([t for t, _ in sent], float)
+    draws = np.asarray(draw_starts, float)
+    to_send, to_update, to_drawn = [], [], []
+    for when in d:
+        k = int(np.searchsorted(send_t, when))
+        if k == len(send_t) or not np.isfinite(reply[k]):
+            continue  # the last moves: nothing answered them within the window
+        to_send.append(send_t[k] - when)
+        to_update.append(reply[k] - when)
+        j = int(np.searchsorted(draws, reply[k]))
+        if j < len(draws):
+            to_drawn.append(draws[j] - when)
+    t0, t1 = d[0], d[-1]
+    span = (t1 - t0) / 1e3
+
+    def rate(times) -> float:
+        times = np.asarray(times, float)
+        return float(((times >= t0) & (times <= t1)).sum() / span)
+
+    return PageInputStats(
+        seconds=span, requested_hz=requested_hz, moves_per_s=(len(d) - 1) / span,
+        gizmo_sends_per_s=rate(send_t), arm_updates_per_s=rate([t for t, moves_arm, _ in batches if moves_arm]),
+        drawn_frames_per_s=rate(draws), sends_answered=answered_share,
+        move_to_send_ms=Percentiles.of(to_send), move_to_scene_update_ms=Percentiles.of(to_update),
+        move_to_drawn_frame_ms=Percentiles.of(to_drawn),
+    )
 
 
 def _find_gizmo_grab(ui, cx: float, cy: float, scale: float) -> float:
@@ -394,7 +468,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             scale = page.locator("canvas").first.bounding_box()["height"] / 900.0
             grab = _find_gizmo_grab(ui, cx, cy, scale)
             amplitude_px *= scale
-            events = EventTimes(console.url)
+            events = EventTimes(console.url)  # closed in the finally below
             page.mouse.move(cx - 200, cy + 200)
             _settle(page)
             # the page at rest (the robot idle, its telemetry still arriving)
@@ -417,13 +491,12 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
                 dispatched = ui.pointer_sweep(x0, cy, amplitude_px, input_hz, input_seconds, period_s)
                 e1 = time.perf_counter()
                 time.sleep(0.3)  # the last replies
-                raw_input = page.evaluate(STOP_FRAMES_JS)
+                page.evaluate(STOP_FRAMES_JS)
                 record = page.evaluate(READ_SOCKET_RECORD_JS)
                 page.mouse.up()
-                page_input = _input_stats(dispatched, record["sent"], record["batches"], raw_input["t"], raw_input["d"])
-                page_input["requested_hz"] = input_hz
                 if not record["sent"]:
                     raise RuntimeError("the pointer moves did not drag the gizmo (no update sent)")
+                page_input = _input_stats(dispatched, record["sent"], record["batches"], record["drawStarts"], input_hz)
                 time.sleep(0.5)
             # the drag with the real mouse: press on the x arrow, sweep it left and right, let go
             page.mouse.move(x0, cy)
@@ -447,7 +520,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             chromium.close()
         arm_events_drag, arm_events_idle = len(events.between(t0, t1)), len(events.between(i0, i1))
         if page_input is not None:
-            page_input["session_arm_events_per_s"] = len(events.between(e0, e1)) / (e1 - e0)
+            page_input = replace(page_input, session_arm_events_per_s=len(events.between(e0, e1)) / (e1 - e0))
     finally:
         if events is not None:
             events.close()
@@ -468,7 +541,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
     idle.update({"arm_events_per_s": arm_events_idle / (i1 - i0)})
     uptime = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
     return {"renderer": renderer, "viewport": list(viewport), "fixed_dpr": fixed_dpr, "drag": drag, "idle": idle,
-            "page_input": page_input, "uptime": uptime,
+            "page_input": asdict(page_input) if page_input is not None else None, "uptime": uptime,
             "load_average": list(os.getloadavg())}
 
 
@@ -522,8 +595,8 @@ def main_with(args: argparse.Namespace) -> int:
                       f"session arm events/s), {q['drawn_frames_per_s']:.1f} drawn frames/s; move -> scene update "
                       f"p50 {q['move_to_scene_update_ms']['p50']:.1f} ms, p95 {q['move_to_scene_update_ms']['p95']:.1f} ms (goal 50); "
                       f"move -> send p95 {q['move_to_send_ms']['p95']:.1f} ms; move -> drawn frame p50 "
-                      f"{q['move_to_drawn_frame_ms']['p50']:.0f} ms, p95 {q['move_to_drawn_frame_ms']['p95']:.0f} ms "
-                      f"(pairing {q['pairing']})")
+                      f"{q['move_to_drawn_frame_ms']['p50']:.0f} ms, p95 {q['move_to_drawn_frame_ms']['p95']:.0f} ms; "
+                      f"{100 * q['sends_answered']:.0f}% of sends answered by a reply of their own")
             print(f"browser drag: {b['drag']['mouse_moves_per_s']:.0f} mouse moves/s, "
                   f"{b['drag']['statements_generated']} statements generated; renderer {b['renderer']}; {b['uptime']}")
         print(f"load average {out['load_average']:.1f}")
