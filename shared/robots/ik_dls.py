@@ -97,6 +97,52 @@ def _jacobians(robot: Robot, data: pin.Data, qs: np.ndarray) -> np.ndarray:
     return out
 
 
+class _Starts:
+    """Every seed's joint vector, pose error and cost (``|e|^2 / 2``) while a batch descends
+    toward one goal; which starts are still running and which have converged."""
+
+    def __init__(self, robot: Robot, data: pin.Data, seeds: np.ndarray, base_R_goal: np.ndarray, base_p_goal: np.ndarray) -> None:
+        self._robot, self._data = robot, data
+        self._goal = (base_R_goal, base_p_goal)
+        self.q = np.array(seeds, dtype=float)
+        self.err, self.cost = self._evaluate(self.q)
+        self.alive = np.ones(len(self.q), dtype=bool)
+        self.converged = np.zeros(len(self.q), dtype=bool)
+
+    def _evaluate(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        err = _pose_errors(self._robot, self._data, qs, *self._goal)
+        return err, 0.5 * np.einsum("ij,ij->i", err, err)
+
+    def running(self) -> np.ndarray:
+        """Mark the starts within ``TOLERANCE`` converged; the indices of those still running."""
+        done = self.alive & (np.sqrt(2.0 * self.cost) < TOLERANCE)
+        self.converged |= done
+        self.alive &= ~done
+        return np.flatnonzero(self.alive)
+
+    def normal_equations(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``J^T J`` (k, dof, dof) and ``J^T e`` (k, dof, 1) of the starts ``idx``."""
+        jac = _jacobians(self._robot, self._data, self.q[idx])
+        jac_t = jac.transpose(0, 2, 1)
+        return jac_t @ jac, jac_t @ self.err[idx][:, :, None]
+
+    def take_better(self, idx: np.ndarray, q_try: np.ndarray) -> np.ndarray:
+        """Move each start ``idx`` to its row of ``q_try`` if that lowers its cost; which did."""
+        err_try, cost_try = self._evaluate(q_try)
+        better = cost_try < self.cost[idx]
+        took = idx[better]
+        self.q[took], self.err[took], self.cost[took] = q_try[better], err_try[better], cost_try[better]
+        return better
+
+    def result(self) -> np.ndarray:
+        """The joint vectors, NaN rows for the starts that did not reach the goal (a start still
+        running counts if it is within 100 ``TOLERANCE``)."""
+        converged = self.converged | (self.alive & (np.sqrt(2.0 * self.cost) < 100.0 * TOLERANCE))
+        q = self.q.copy()
+        q[~converged] = np.nan
+        return q
+
+
 def _solve_batch(
     robot: Robot, data: pin.Data, seeds: np.ndarray, base_R_goal: np.ndarray, base_p_goal: np.ndarray
 ) -> np.ndarray:
@@ -108,41 +154,25 @@ def _solve_batch(
     does not lower the cost is refused and ``boost`` grows tenfold, an accepted one shrinks it.
     A start is dropped when ``boost`` explodes (a local minimum) or its error has not halved over
     ``STALL_WINDOW`` iterations (an unreachable goal)."""
-    q = np.array(seeds, dtype=float)
-    n = len(q)
+    starts = _Starts(robot, data, seeds, base_R_goal, base_p_goal)
     eye = np.eye(robot.dof)
-    err = _pose_errors(robot, data, q, base_R_goal, base_p_goal)
-    cost = 0.5 * np.einsum("ij,ij->i", err, err)
-    boost = np.ones(n)
-    alive = np.ones(n, dtype=bool)
-    converged = np.zeros(n, dtype=bool)
-    history = [cost.copy()]
+    boost = np.ones(len(starts.q))
+    history = [starts.cost.copy()]
     for _ in range(MAX_ITERATIONS):
-        done = alive & (np.sqrt(2.0 * cost) < TOLERANCE)
-        converged |= done
-        alive &= ~done
-        idx = np.flatnonzero(alive)
+        idx = starts.running()
         if idx.size == 0:
             break
-        jac = _jacobians(robot, data, q[idx])
-        jac_t = jac.transpose(0, 2, 1)
-        lhs = jac_t @ jac + (boost[idx] * (cost[idx] + DAMPING_FLOOR))[:, None, None] * eye
-        rhs = jac_t @ err[idx][:, :, None]
-        q_try = q[idx] + _solve_steps(lhs, rhs)
-        err_try = _pose_errors(robot, data, q_try, base_R_goal, base_p_goal)
-        cost_try = 0.5 * np.einsum("ij,ij->i", err_try, err_try)
-        better = cost_try < cost[idx]
+        normal, rhs = starts.normal_equations(idx)
+        damping = boost[idx] * (starts.cost[idx] + DAMPING_FLOOR)
+        better = starts.take_better(idx, starts.q[idx] + _solve_steps(normal + damping[:, None, None] * eye, rhs))
         took, refused = idx[better], idx[~better]
-        q[took], err[took], cost[took] = q_try[better], err_try[better], cost_try[better]
         boost[took] = np.maximum(boost[took] * 0.3, 1.0)
         boost[refused] *= 10.0
-        alive[refused[boost[refused] > 1e12]] = False  # no descent direction left
-        history.append(cost.copy())
+        starts.alive[refused[boost[refused] > 1e12]] = False  # no descent direction left
+        history.append(starts.cost.copy())
         if len(history) > STALL_WINDOW:  # cost is squared: 0.25 means the error halved
-            alive &= ~((cost > 0.25 * history[-STALL_WINDOW - 1]) & (cost > 1e-12))
-    converged |= alive & (np.sqrt(2.0 * cost) < 100.0 * TOLERANCE)
-    q[~converged] = np.nan
-    return q
+            starts.alive &= ~((starts.cost > 0.25 * history[-STALL_WINDOW - 1]) & (starts.cost > 1e-12))
+    return starts.result()
 
 
 def _gauss_newton_batch(
@@ -155,39 +185,23 @@ def _gauss_newton_batch(
     the Jacobian is tiny, Levenberg-Marquardt's damping stays far above its square, and a start
     creeps into a valley a few tens of micrometres from the goal and stalls. The plain
     Gauss-Newton direction keeps the weak direction; the line search tames its length."""
-    q = np.array(seeds, dtype=float)
-    err = _pose_errors(robot, data, q, base_R_goal, base_p_goal)
-    cost = 0.5 * np.einsum("ij,ij->i", err, err)
-    alive = np.ones(len(q), dtype=bool)
-    converged = np.zeros(len(q), dtype=bool)
+    starts = _Starts(robot, data, seeds, base_R_goal, base_p_goal)
     eye = np.eye(robot.dof)
     for _ in range(MAX_ITERATIONS):
-        done = alive & (np.sqrt(2.0 * cost) < TOLERANCE)
-        converged |= done
-        alive &= ~done
-        idx = np.flatnonzero(alive)
+        idx = starts.running()
         if idx.size == 0:
             break
-        jac = _jacobians(robot, data, q[idx])
-        jac_t = jac.transpose(0, 2, 1)
-        step = _solve_steps(jac_t @ jac + DAMPING_FLOOR * eye, jac_t @ err[idx][:, :, None])
-        pending, scale = np.arange(idx.size), 1.0
+        normal, rhs = starts.normal_equations(idx)
+        step = _solve_steps(normal + DAMPING_FLOOR * eye, rhs)
+        pending, scale = np.arange(idx.size), 1.0  # positions in idx still without a lower cost
         for _ in range(LINE_SEARCH_HALVINGS):
-            rows = idx[pending]
-            q_try = q[rows] + scale * step[pending]
-            err_try = _pose_errors(robot, data, q_try, base_R_goal, base_p_goal)
-            cost_try = 0.5 * np.einsum("ij,ij->i", err_try, err_try)
-            better = cost_try < cost[rows]
-            took = rows[better]
-            q[took], err[took], cost[took] = q_try[better], err_try[better], cost_try[better]
+            better = starts.take_better(idx[pending], starts.q[idx[pending]] + scale * step[pending])
             pending = pending[~better]
             if pending.size == 0:
                 break
             scale *= 0.5
-        alive[idx[pending]] = False  # no step along its direction lowers the error
-    converged |= alive & (np.sqrt(2.0 * cost) < 100.0 * TOLERANCE)
-    q[~converged] = np.nan
-    return q
+        starts.alive[idx[pending]] = False  # no step along its direction lowers the error
+    return starts.result()
 
 
 def _solve_steps(lhs: np.ndarray, rhs: np.ndarray) -> np.ndarray:
