@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from support import ARTIFACTS, CHROMIUM_ARGS, RunningConsole, start_console, stop_process
+from support import CHROMIUM_ARGS, RunningConsole, screenshot_if_failed, start_console, stop_process
 
 
 @pytest.fixture
@@ -45,10 +45,7 @@ def page(chromium, request):
     context = chromium.new_context(viewport={"width": 1400, "height": 900})
     page = context.new_page()
     yield page
-    failed = getattr(request.node, "rep_call", None)
-    if failed is not None and failed.failed:
-        ARTIFACTS.mkdir(exist_ok=True)
-        page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+    screenshot_if_failed(request, page)
     context.close()
 
 

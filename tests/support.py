@@ -35,6 +35,15 @@ CHROMIUM_ARGS = [
 T = TypeVar("T")
 
 
+def screenshot_if_failed(request, page) -> None:
+    """After a test (``request`` is its fixture request), keep a screenshot of the Playwright
+    ``page`` in ARTIFACTS when the test's call failed (see conftest's report hook)."""
+    report = getattr(request.node, "rep_call", None)
+    if report is not None and report.failed:
+        ARTIFACTS.mkdir(exist_ok=True)
+        page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+
+
 def wait_for(predicate: Callable[[], T], timeout: float = 15.0, interval: float = 0.1, what: str = "condition") -> T:
     """Poll ``predicate`` until it returns something truthy and return that; fail saying
     ``what`` was not met within ``timeout`` s."""

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from console_page import ConsolePage, wait_for
-from support import ARTIFACTS
+from support import screenshot_if_failed
 
 pytestmark = pytest.mark.browser
 
@@ -43,10 +43,7 @@ def module_ui(linked_console, chromium):
 def ui(module_ui: ConsolePage, request) -> ConsolePage:
     module_ui.reset_program()
     yield module_ui
-    report = getattr(request.node, "rep_call", None)
-    if report is not None and report.failed:
-        ARTIFACTS.mkdir(exist_ok=True)
-        module_ui.page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+    screenshot_if_failed(request, module_ui.page)
 
 
 def entries(ui: ConsolePage) -> list[dict]:

@@ -20,7 +20,7 @@ import pytest
 
 from console_page import ConsolePage, wait_for
 from shared.cells.loader import DEFAULT_CELL, load_cell
-from support import ARTIFACTS, RunningConsole, start_console, stop_process
+from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 from e2e.test_console_session import PIECES  # the pieces of the API test, word for word
 
 pytestmark = pytest.mark.browser
@@ -39,10 +39,7 @@ def ui(transfer_console: RunningConsole, chromium, request) -> Iterator[ConsoleP
     page = ConsolePage(context.new_page(), transfer_console, quick_clicks=True)
     page.open()
     yield page
-    report = getattr(request.node, "rep_call", None)
-    if report is not None and report.failed:
-        ARTIFACTS.mkdir(exist_ok=True)
-        page.page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+    screenshot_if_failed(request, page.page)
     context.close()
 
 

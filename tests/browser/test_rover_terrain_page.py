@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from console_page import ConsolePage, wait_for
-from support import ARTIFACTS, start_console, stop_process
+from support import ARTIFACTS, screenshot_if_failed, start_console, stop_process
 
 pytestmark = pytest.mark.browser
 
@@ -37,10 +37,7 @@ def rover_ui(tmp_path_factory, chromium):
 @pytest.fixture
 def ui(rover_ui: ConsolePage, request) -> ConsolePage:
     yield rover_ui
-    report = getattr(request.node, "rep_call", None)
-    if report is not None and report.failed:
-        ARTIFACTS.mkdir(exist_ok=True)
-        rover_ui.page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+    screenshot_if_failed(request, rover_ui.page)
 
 
 def terrain(ui: ConsolePage) -> dict:

@@ -43,13 +43,7 @@ def _check_tree(tree, tris_all: np.ndarray) -> None:
     seen = []
     for i in range(n):
         # every triangle under the node is inside its box and its sphere
-        stack, under = [i], []
-        while stack:
-            k = stack.pop()
-            if tree.left[k] < 0:
-                under.extend(range(tree.tri_start[k], tree.tri_start[k] + tree.tri_count[k]))
-            else:
-                stack += [tree.left[k], tree.right[k]]
+        under = _tris_under(tree, i)
         pts = tree.tris[under].reshape(-1, 3)
         local = (pts - tree.center[i]) @ tree.axes[i]
         assert np.all(np.abs(local) <= tree.half[i] + 1e-12)
