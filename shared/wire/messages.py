@@ -6,8 +6,12 @@ The command channel (thesis §4.4) carries two kinds of WebSocket messages:
   of statements;
 * **text** messages are the JSON documents defined here, each an object with a ``"type"``.
 
-Console -> robot: ``hello``, ``stop``, ``resume``, ``skip``, ``abort`` (and binary units).
-Robot -> console: ``welcome``, ``accepted``, ``rejected``, ``status``, ``recovery_ack``.
+Console -> robot: ``hello``, ``stop``, ``resume``, ``skip``, ``abort``, ``heartbeat`` (and binary
+units). Robot -> console: ``welcome``, ``accepted``, ``rejected``, ``status``, ``recovery_ack``,
+``heartbeat``, ``halted``. Each end refuses the types only the other sends.
+
+Numbers are finite (no NaN or infinity in any field) and JSON is strict (no repeated keys):
+``shared.wire.strict_json``. Liveness (heartbeats, the silence limit): ``shared.wire.liveness``.
 
 Delivery guarantees and the exactly-once reasoning
 ==================================================
@@ -63,11 +67,13 @@ as unknown. That is the one case the keys cannot cover.
 
 from __future__ import annotations
 
-import json
 from enum import Enum, IntEnum
 from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
+from shared.wire.strict_json import StrictJSONError, loads_strict
 
 PROTOCOL_VERSION = 1
 MAX_MESSAGE_BYTES = 1 << 20
@@ -77,8 +83,14 @@ Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]
 
 
+MAX_TEXT = 2000
+"""Longest free text (a reason, a detail) a message may carry."""
+Name = Annotated[str, Field(min_length=1, max_length=64)]
+
+
 class _Model(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # no NaN or infinity in any float of any message: one number must never reach the servo
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class RobotState(IntEnum):
@@ -138,6 +150,11 @@ class Hello(_Model):
     type: Literal["hello"] = "hello"
     protocol: int = PROTOCOL_VERSION
     client_id: str = Field(min_length=1, max_length=64)
+    session_id: str | None = Field(
+        None, min_length=1, max_length=64,
+        description="the robot session the counters below belong to (None: a client that never had a welcome); "
+        "a robot with another session treats them as 0",
+    )
     last_answered_comm: int = Field(0, ge=0, description="newest communication the client has an answer for")
     last_report_seq: int = Field(0, ge=0, description="newest status report the client has seen")
     last_acked_command: int = Field(0, ge=0, description="newest recovery command acknowledged")
@@ -153,6 +170,36 @@ class Welcome(_Model):
     units_held: int = Field(ge=0, description="units of communication last_answered_comm + 1 already held")
     last_applied_command: int = Field(ge=0, description="newest recovery command of this client applied")
     last_report_seq: int = Field(ge=0, description="newest status report the robot has emitted")
+    heartbeat_s: float = Field(HEARTBEAT_INTERVAL_S, gt=0.0, le=60.0, description="interval of the robot's heartbeats")
+    silence_limit_s: float = Field(
+        DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0, description="silence beyond the expected arrival at which the robot stops"
+    )
+    halted: str | None = Field(None, max_length=MAX_TEXT, description="why the robot holds by itself now, if it does")
+
+
+class Heartbeat(_Model):
+    """Sent every ``heartbeat_s`` by each end of the command channel (``shared.wire.liveness``):
+    its arrival is what tells the other end the line and its sender are alive."""
+
+    type: Literal["heartbeat"] = "heartbeat"
+    seq: int = Field(ge=0, description="counts the sender's heartbeats on this connection")
+
+
+class HaltCause(str, Enum):
+    """Why the robot stopped by itself (not on a statement's failure, not on the operator's stop)."""
+
+    SILENCE = "silence"  # nothing heard from the console past the silence limit
+    INTERNAL_ERROR = "internal_error"  # the executor's last-resort boundary caught an error
+
+
+class Halted(_Model):
+    """The robot made a controlled stop by itself and holds its queue until the operator's
+    ``resume``, ``skip`` or ``abort``; ``detail`` says why in words."""
+
+    type: Literal["halted"] = "halted"
+    cause: HaltCause
+    detail: str = Field(max_length=MAX_TEXT)
+    robot: RobotSnapshot | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -173,6 +220,7 @@ class RejectReason(str, Enum):
     NO_SESSION = "no_session"  # a unit or command before ``hello``
     BAD_MESSAGE = "bad_message"  # a text message that is not one of the types here
     BUFFER_FULL = "buffer_full"  # the robot cannot hold more statements now
+    PROTOCOL = "protocol"  # hello with a protocol version this robot does not speak
 
 
 class Accepted(_Model):
@@ -194,9 +242,9 @@ class Rejected(_Model):
     comm_id: int | None = Field(None, ge=1, description="None when the unit header was unreadable")
     seq: int | None = Field(None, ge=0)
     reason: RejectReason
-    detail: str
+    detail: str = Field(max_length=MAX_TEXT)
     statement_index: int | None = Field(None, ge=0)
-    statement: str | None = None
+    statement: str | None = Field(None, max_length=400)
     final: bool = Field(
         True,
         description="True: the answer of communication comm_id (it will never run). False: only this "
@@ -236,7 +284,7 @@ class StatusReport(_Model):
     report_seq: int = Field(ge=1)
     number: int = Field(ge=1)
     state: StatementState
-    reason: str | None = None
+    reason: str | None = Field(None, max_length=MAX_TEXT)
     robot: RobotSnapshot | None = None
 
     @model_validator(mode="after")
@@ -292,14 +340,22 @@ class RecoveryAck(_Model):
     type: Literal["recovery_ack"] = "recovery_ack"
     command_id: int = Field(ge=1)
     applied: bool
-    detail: str = ""
+    detail: str = Field("", max_length=MAX_TEXT)
     robot: RobotSnapshot | None = None
 
 
 RECOVERY_TYPES = frozenset({"stop", "resume", "skip", "abort"})
+CLIENT_TYPES = frozenset({"hello", "heartbeat"}) | RECOVERY_TYPES
+"""Message types a console may send; the robot refuses any other (a client-sent ``rejected`` is
+not the robot's own error)."""
+ROBOT_TYPES = frozenset({"welcome", "accepted", "rejected", "status", "recovery_ack", "heartbeat", "halted"})
+"""Message types the robot sends; the console ignores any other."""
 
 Message = Annotated[
-    Union[Hello, Welcome, Accepted, Rejected, StatusReport, Stop, Resume, SkipCurrent, AbortFlush, RecoveryAck],
+    Union[
+        Hello, Welcome, Accepted, Rejected, StatusReport, Stop, Resume, SkipCurrent, AbortFlush, RecoveryAck,
+        Heartbeat, Halted,
+    ],
     Field(discriminator="type"),
 ]
 Answer = Union[Accepted, Rejected]
@@ -313,21 +369,31 @@ def encode_message(message: BaseModel) -> str:
     return message.model_dump_json(exclude_none=True)
 
 
-def decode_message(data: str | bytes) -> Message | Rejected:
-    """Parse one text message; anything malformed becomes a ``Rejected`` (never an exception)."""
+def decode_message(data: str | bytes, allowed: frozenset[str] | None = None) -> Message | Rejected:
+    """Parse one text message; anything malformed becomes a ``Rejected`` (never an exception).
+
+    The JSON must be strict (``shared.wire.strict_json``: no NaN, no repeated key). ``allowed``
+    names the types this end takes from the other (``CLIENT_TYPES`` on the robot); any other
+    type is refused as ``bad_message``.
+    """
     if len(data) > MAX_MESSAGE_BYTES:
         return Rejected(reason=RejectReason.TOO_LARGE, detail=f"message of {len(data)} bytes; limit {MAX_MESSAGE_BYTES}")
     try:
-        text = data.decode("utf-8") if isinstance(data, (bytes, bytearray)) else data
-        obj = json.loads(text)
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
-        return Rejected(reason=RejectReason.BAD_JSON, detail=f"message is not JSON: {_one_line(exc)}")
+        obj = loads_strict(data)
+    except StrictJSONError as exc:
+        return Rejected(reason=RejectReason.BAD_JSON, detail=f"message is not strict JSON: {_one_line(exc)}")
     if not isinstance(obj, dict):
         return Rejected(reason=RejectReason.BAD_MESSAGE, detail="message is not a JSON object")
+    kind = obj.get("type")
+    if allowed is not None and kind not in allowed:
+        return Rejected(
+            reason=RejectReason.BAD_MESSAGE,
+            detail=f"message type {str(kind)[:64]!r} is not taken here; valid: {', '.join(sorted(allowed))}",
+        )
     try:
         return message_adapter.validate_python(obj)
     except ValidationError as exc:
-        return Rejected(reason=RejectReason.BAD_MESSAGE, detail=f"message type {obj.get('type')!r}: {_first_error(exc)}")
+        return Rejected(reason=RejectReason.BAD_MESSAGE, detail=f"message type {str(kind)[:64]!r}: {_first_error(exc)}")
 
 
 def _one_line(exc: BaseException) -> str:
