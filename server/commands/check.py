@@ -31,11 +31,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
         q_start = np.radians(args.start)
     parsed = parse_file(args.file)
     result = check_program(
-        parsed.statements, robot, cell, q_start=q_start, lines=parsed.lines, strict_tasks=args.strict_tasks
+        parsed.statements, robot, cell, q_start=q_start, lines=parsed.lines, strict_tasks=args.strict_tasks,
+        cols=parsed.cols, pointers=parsed.pointers,
     )
-    # one list in file order: parse errors and check problems interleaved by line
-    found = [(e.line or 0, e.format(parsed.path)) for e in parsed.errors]
-    found += [(p.line or 0, p.format(parsed.path)) for p in result.problems]
+    # one list in file order (file:line:col, or file: /json/pointer): parse errors and check
+    # problems interleaved by line and column, or by statement for the JSON form
+    found = [((e.line or 0, e.col or 0, e.statement or 0), e.format(parsed.path)) for e in parsed.errors]
+    found += [((p.line or 0, p.col or 0, _document_index(p.json_pointer)), p.format(parsed.path)) for p in result.problems]
     lines = [text for _, text in sorted(found, key=lambda item: item[0])]
     ok = parsed.ok and result.ok
     if args.json:
@@ -45,10 +47,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
                 "ok": ok,
                 "statements": len(parsed.statements),
                 "parse_errors": [
-                    {"line": e.line, "col": e.col, "statement": e.statement, "message": e.message} for e in parsed.errors
+                    {"line": e.line, "col": e.col, "pointer": e.pointer, "statement": e.statement, "message": e.message}
+                    for e in parsed.errors
                 ],
                 "problems": [
-                    {"line": p.line, "statement": p.index, "rule": p.rule, "message": p.message} for p in result.problems
+                    {"line": p.line, "col": p.col, "pointer": None if p.line is not None else p.json_pointer,
+                     "statement": p.index, "rule": p.rule, "message": p.message}
+                    for p in result.problems
                 ],
                 "final_joints": None if final is None else np.degrees(final).tolist(),
                 "unit": "deg",
@@ -60,6 +65,11 @@ def _cmd_check(args: argparse.Namespace) -> int:
         if ok:
             print(f"{parsed.path}: ok, {len(parsed.statements)} statements")
     return 0 if ok else 1
+
+
+def _document_index(json_pointer: str) -> int:
+    head = json_pointer.split("/")[1] if json_pointer.count("/") else ""
+    return int(head) if head.isdigit() else 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:

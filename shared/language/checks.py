@@ -6,9 +6,11 @@ tool pose where its statement starts, so a reachability verdict depends on every
 After a target fails, the robot is taken to stay where it was (what the telerobot does when a
 statement fails), so later problems are still reported.
 
-Rules, each reported as a :class:`Problem` with the statement's index and source line:
+Rules, each reported as a :class:`Problem` with the statement's index, its source line and
+column (text form) or JSON pointer (JSON form), and the field at fault where there is one:
 
-* ``values``: every number is finite (the models accept NaN and infinity; nothing else does);
+* ``values``: every number is finite (the models refuse NaN, infinity and values beyond the
+  physical bounds of ``shared.language.bounds``; this catches statements built around them);
 * ``joints``: a MOVE has one value per joint; a DRIVE names an existing joint;
 * ``limits``: MOVE and DRIVE targets lie within the joint ranges;
 * ``reach``: a DRAW/ROTATE/MOVES target has an inverse-kinematics solution within the ranges
@@ -65,15 +67,31 @@ RULES = ("values", "joints", "limits", "reach", "frame", "units", "names", "prog
 
 @dataclass(frozen=True)
 class Problem:
-    """One finding: ``index`` is the 0-based statement index, ``line`` its source line if known."""
+    """One finding: ``index`` is the 0-based statement index, ``line``/``col`` its source
+    position in the text form, ``pointer`` the statement's JSON pointer in the JSON form (``/3``;
+    by default its index in the program list), ``field`` the statement's field at fault
+    (``target``, ``joints/2``), if any."""
 
     index: int
     line: int | None
     rule: str
     message: str
+    col: int | None = None
+    pointer: str | None = None
+    field: str | None = None
+
+    @property
+    def json_pointer(self) -> str:
+        """The fault's place in the JSON form: ``/3/target``."""
+        base = self.pointer if self.pointer is not None else f"/{self.index}"
+        return f"{base}/{self.field}" if self.field else base
 
     def format(self, path: str) -> str:
-        where = f"{path}:{self.line}" if self.line is not None else f"{path}: statement {self.index + 1}"
+        """``file:line:col: message`` for the text form, ``file: /3/target: message`` otherwise."""
+        if self.line is not None:
+            where = f"{path}:{self.line}:{self.col if self.col is not None else 1}"
+        else:
+            where = f"{path}: {self.json_pointer}"
         return f"{where}: {self.message}"
 
 
@@ -103,30 +121,45 @@ def _speed_text(s: Speed) -> str:
     return f"{s.value * scale:g} {SPEED_UNIT_TEXT[s.unit]}"
 
 
+_FLOAT_FIELDS: dict[str, tuple[str, ...]] = {
+    "MOVE": ("joints",), "DRIVE": ("target",), "DRAW": ("position",), "ROTATE": ("rpy",), "MOVES": ("position", "rpy"),
+}
+
+
+def _finite(values: object) -> bool:
+    if isinstance(values, (tuple, list)):
+        return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+    return isinstance(values, (int, float)) and math.isfinite(values)
+
+
 def _non_finite(st: Statement) -> str:
-    """The name of the first numeric field of ``st`` that is NaN or infinite ('' if none); the
-    models accept such values, the text form and the robot cannot."""
-    for name in ("joints", "target", "position", "rpy"):
-        value = getattr(st, name, None)
-        if value is not None and not np.all(np.isfinite(np.asarray(value, dtype=float))):
+    """The name of the first numeric field of ``st`` that is NaN or infinite ('' if none). The
+    models refuse such values; a statement made with ``model_construct`` skips them. Only the
+    fields each kind has are read (a missing attribute of a pydantic model is slow to miss)."""
+    for name in _FLOAT_FIELDS.get(st.kind, ()):
+        if not _finite(getattr(st, name)):
             return name
-    speed = getattr(st, "speed", None)
-    if speed is not None and not np.isfinite(speed.value):
-        return "speed"
-    until = getattr(st, "until", None)
-    for name in ("newtons", "seconds"):
-        if until is not None and not np.isfinite(getattr(until, name, 0.0)):
-            return f"UNTIL {name}"
+    if st.kind == "SPEED" and not _finite(st.speed.value):
+        return "speed/value"
+    if st.kind in _FLOAT_FIELDS:
+        if st.speed is not None and not _finite(st.speed.value):
+            return "speed/value"
+        until = st.until
+        if until is not None and until.kind != "contact" and not _finite(getattr(until, "newtons", getattr(until, "seconds", 0.0))):
+            return "until/newtons" if until.kind == "force" else "until/seconds"
     return ""
 
 
 class _Checker:
     def __init__(
-        self, robot: Robot, cell: Cell | None, q_start: np.ndarray, lines: Sequence[int | None], strict_tasks: bool
+        self, robot: Robot, cell: Cell | None, q_start: np.ndarray, lines: Sequence[int | None], strict_tasks: bool,
+        cols: Sequence[int | None] = (), pointers: Sequence[str | None] = (),
     ) -> None:
         self.robot = robot
         self.cell = cell
         self.lines = lines
+        self.cols = cols
+        self.pointers = pointers
         self.problems: list[Problem] = []
         self.q: np.ndarray | None = q_start
         self.world_T_base = cell.world_T_base if cell is not None else np.eye(4)
@@ -141,15 +174,19 @@ class _Checker:
         self.strict_after: tuple[str, int] | None = None  # any task, when strict_tasks
 
     # -- helpers --------------------------------------------------------------------------
-    def add(self, index: int, rule: str, message: str) -> None:
+    def add(self, index: int, rule: str, message: str, field: str | None = None) -> None:
         line = self.lines[index] if index < len(self.lines) else None
-        self.problems.append(Problem(index, line, rule, message))
+        col = self.cols[index] if index < len(self.cols) else None
+        ptr = self.pointers[index] if index < len(self.pointers) else None
+        self.problems.append(Problem(index, line, rule, message, col, ptr, field))
 
     def where(self, index: int) -> str:
         line = self.lines[index] if index < len(self.lines) else None
         return f"line {line}" if line is not None else f"statement {index + 1}"
 
-    def limits(self, index: int, q: np.ndarray, what: str) -> bool:
+    def limits(self, index: int, q: np.ndarray, what: str, field: str | None = None) -> bool:
+        """Each joint within its range; ``field``: the statement's field to name (``target``),
+        else ``joints/<j>`` for the joint at fault."""
         ok = True
         r = self.robot
         for j in range(r.dof):
@@ -158,6 +195,7 @@ class _Checker:
                     index, "limits",
                     f"{what}: joint {j + 1} at {_deg(q[j])} deg is outside its range "
                     f"[{_deg(r.lower[j])}, {_deg(r.upper[j])}] deg",
+                    field or f"joints/{j}",
                 )
                 ok = False
         return ok
@@ -178,9 +216,10 @@ class _Checker:
                 index, "units",
                 f"{st.kind} cannot take WITH SPEED {_speed_text(own)}: it takes "
                 + " or ".join(SPEED_UNIT_TEXT[u] for u in allowed),
+                "speed/unit",
             )
         elif own.unit is SpeedUnit.FRACTION and own.value > 1.0:
-            self.add(index, "units", f"WITH SPEED {_speed_text(own)} is above 100 %")
+            self.add(index, "units", f"{st.kind} WITH SPEED {_speed_text(own)} is above 100 %", "speed/value")
 
     # -- statements -----------------------------------------------------------------------
     def run(self, statements: Sequence[Statement]) -> list[np.ndarray | None]:
@@ -202,7 +241,7 @@ class _Checker:
                 continue
             bad = _non_finite(st)
             if bad:
-                self.add(index, "values", f"{st.kind}: {bad} is not a finite number")
+                self.add(index, "values", f"{st.kind}: {bad} is not a finite number", bad)
                 q_after.append(None if self.q is None else self.q.copy())
                 continue
             if is_action(st):
@@ -215,7 +254,7 @@ class _Checker:
                 self.cartesian(index, st)
             elif isinstance(st, SetSpeed):
                 if st.speed.unit is SpeedUnit.FRACTION and st.speed.value > 1.0:
-                    self.add(index, "units", f"SPEED {_speed_text(st.speed)} is above 100 %")
+                    self.add(index, "units", f"SPEED {_speed_text(st.speed)} is above 100 %", "speed/value")
             elif isinstance(st, TaskCall):
                 self.task(index, st)
                 if self.strict_tasks:
@@ -230,7 +269,7 @@ class _Checker:
 
     def move(self, index: int, st: Move) -> None:
         if len(st.joints) != self.robot.dof:
-            self.add(index, "joints", f"MOVE gives {len(st.joints)} joint values; robot {self.robot.name!r} has {self.robot.dof} joints")
+            self.add(index, "joints", f"MOVE gives {len(st.joints)} joint values; robot {self.robot.name!r} has {self.robot.dof} joints", "joints")
             return
         q = np.array(st.joints, dtype=float)
         if self.limits(index, q, "MOVE"):
@@ -238,13 +277,13 @@ class _Checker:
 
     def drive(self, index: int, st: Drive) -> None:
         if not 1 <= st.joint <= self.robot.dof:
-            self.add(index, "joints", f"DRIVE J{st.joint}: robot {self.robot.name!r} has joints J1 to J{self.robot.dof}")
+            self.add(index, "joints", f"DRIVE J{st.joint}: robot {self.robot.name!r} has joints J1 to J{self.robot.dof}", "joint")
             return
         if self.q is None:
             return
         q = self.q.copy()
         q[st.joint - 1] = st.target
-        if self.limits(index, q, f"DRIVE J{st.joint}"):
+        if self.limits(index, q, f"DRIVE J{st.joint}", "target"):
             self.q = q
 
     def frame_T(self, index: int, frame: Frame, now: np.ndarray) -> np.ndarray | None:
@@ -255,7 +294,7 @@ class _Checker:
         if frame is Frame.TOOL:
             return now
         if self.cell is None:
-            self.add(index, "frame", "frame WORK needs a cell (give --cell)")
+            self.add(index, "frame", "frame WORK needs a cell (give --cell)", "frame")
             return None
         return self.cell.frame("work")
 
@@ -264,6 +303,7 @@ class _Checker:
             self.add(
                 index, "reach",
                 f"{st.kind} sets the tool orientation, but robot {self.robot.name!r} positions its tool point only; use DRAW",
+                "rpy",
             )
             return
         if self.q is None:
@@ -284,7 +324,10 @@ class _Checker:
                 what += (" " if what else "") + "(" + ", ".join(_deg(a) for a in st.rpy) + ") deg"
             outside = self.solve(target, respect_limits=False) is not None
             reason = "only outside the joint ranges" if outside else "outside the workspace"
-            self.add(index, "reach", f"{st.kind} target {what} in {st.frame.value} is unreachable for {self.robot.name!r}: {reason}")
+            self.add(
+                index, "reach", f"{st.kind} target {what} in {st.frame.value} is unreachable for {self.robot.name!r}: {reason}",
+                "rpy" if isinstance(st, Rotate) else "position",
+            )
             return
         self.q = q
 
@@ -305,12 +348,12 @@ class _Checker:
         spec = TASKS.get(st.name) or TASKS.get(st.name.lower())
         if spec is None:
             known = ", ".join(t.signature() for t in TASKS.values())
-            self.add(index, "names", f"unknown task {st.name!r}; known tasks: {known}")
+            self.add(index, "names", f"unknown task {st.name!r}; known tasks: {known}", "name")
             self.q = None
             self.unknown_after = (st.name, index)
             return
         if len(st.args) != len(spec.params):
-            self.add(index, "names", f"TASK {spec.name} takes {len(spec.params)} argument(s): {spec.signature()}; got {len(st.args)}")
+            self.add(index, "names", f"TASK {spec.name} takes {len(spec.params)} argument(s): {spec.signature()}; got {len(st.args)}", "args")
         args = [self.resolve(index, spec, kind, name) for kind, name in zip(spec.params, st.args)]
         self.gripper(index, spec, args)
         if spec.arm_end == "unknown":
@@ -389,14 +432,20 @@ def check_program(
     q_start: Sequence[float] | np.ndarray | None = None,
     lines: Sequence[int | None] | None = None,
     strict_tasks: bool = False,
+    cols: Sequence[int | None] | None = None,
+    pointers: Sequence[str | None] | None = None,
 ) -> CheckResult:
     """Check ``statements`` for ``robot`` (placed and tooled by ``cell`` when given), starting
-    from ``q_start`` (radians). ``lines`` gives each statement's source line for the messages.
+    from ``q_start`` (radians). ``lines`` and ``cols`` give each statement's source position for
+    the messages (text form), ``pointers`` its JSON pointer (JSON form; default ``/<index>``).
     ``strict_tasks``: the literal rule of §4.3.6, nothing at all may follow any task call
     (default: only what moves the arm may not follow a task whose end pose is unknown)."""
     if cell is not None and cell.robot.name != robot.name:
         raise InputError(f"cell {cell.name!r} is for robot {cell.robot.name!r}, not {robot.name!r}")
     q0 = start_vector(robot, cell, q_start)
-    checker = _Checker(robot, cell, q0, list(lines) if lines is not None else [None] * len(statements), strict_tasks)
+    checker = _Checker(
+        robot, cell, q0, list(lines) if lines is not None else [None] * len(statements), strict_tasks,
+        list(cols or ()), list(pointers or ()),
+    )
     q_after = checker.run(statements)
     return CheckResult(checker.problems, q_after)

@@ -25,7 +25,7 @@ is :mod:`shared.language.checks`; the parser only enforces what the models thems
 
 from __future__ import annotations
 
-import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +33,8 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from shared.errors import FileFormatError, InputError
+from shared.language import bounds
+from shared.language.json_form import JSONFormFault, loads_located, pointer, validation_faults
 from shared.language.statements import (
     DEFAULT_FRAME,
     SPEED_TEXT_UNIT,
@@ -52,7 +54,7 @@ from shared.language.statements import (
     UntilContact,
     UntilForce,
     UntilTime,
-    program_from_json,
+    statement_adapter,
 )
 from shared.language.units import ConversionError, TextUnit, to_si, unit_from_text
 
@@ -65,29 +67,45 @@ _TOKEN = re.compile(
     re.DOTALL,
 )
 _KINDS = (None, "num", "name", "punct", "bad")  # group number -> token kind
+_XYZ = ("x", "y", "z")
+_RPY = ("roll", "pitch", "yaw")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _JOINT = re.compile(r"[Jj]([0-9]{1,6})")
 
 STATEMENT_KEYWORDS = ("MOVE", "DRIVE", "DRAW", "ROTATE", "MOVES", "SPEED", "MODE", "EVENT", "TASK")
 _SPEED_UNITS = {text: unit for unit, text in SPEED_TEXT_UNIT.items()}
 
+_TEXT_BOUND: dict[TextUnit, tuple[float, float, str]] = {
+    # text unit: (bound in SI, text units per SI unit, name of the bound)
+    TextUnit.MM: (bounds.WORKSPACE_M, 1e3, "workspace bound"),
+    TextUnit.DEG: (bounds.MAX_ANGLE_RAD, 180.0 / math.pi, "angle bound"),
+    TextUnit.PERCENT: (bounds.MAX_SPEED_FRACTION, 100.0, "speed bound"),
+    TextUnit.MM_PER_S: (bounds.MAX_LINEAR_SPEED_M_S, 1e3, "speed bound"),
+    TextUnit.DEG_PER_S: (bounds.MAX_ANGULAR_SPEED_RAD_S, 180.0 / math.pi, "speed bound"),
+    TextUnit.NEWTON: (bounds.MAX_FORCE_N, 1.0, "force bound"),
+    TextUnit.SECOND: (bounds.MAX_TIME_S, 1.0, "time bound"),
+}
+"""The physical bound (``shared.language.bounds``) of a number written in each text unit."""
+
 
 @dataclass(frozen=True)
 class ParseError:
     """One problem in a program file. ``line`` and ``col`` are 1-based (``None`` when the
     source has no lines, e.g. a JSON statement); ``statement`` is the 0-based statement index
-    where known."""
+    where known; ``pointer`` is the JSON pointer of the fault in a JSON-form document
+    (``/3/target``)."""
 
     message: str
     line: int | None = None
     col: int | None = None
     statement: int | None = None
+    pointer: str | None = None
 
     def format(self, path: str = "<text>") -> str:
         if self.line is not None:
-            where = f"{path}:{self.line}:{self.col}" if self.col is not None else f"{path}:{self.line}"
-        elif self.statement is not None:
-            where = f"{path}: statement {self.statement + 1}"
+            where = f"{path}:{self.line}:{self.col if self.col is not None else 1}"
+        elif self.pointer:
+            where = f"{path}: {self.pointer}"
         else:
             where = path
         return f"{where}: {self.message}"
@@ -95,13 +113,16 @@ class ParseError:
 
 @dataclass(frozen=True)
 class ParsedProgram:
-    """The statements of a source, the 1-based source line of each (``None`` for JSON input),
-    and every error found. ``statements`` holds only the statements that parsed."""
+    """The statements of a source, the 1-based source line and column of each (``None`` for JSON
+    input, which has the JSON ``pointers`` of its statements instead), and every error found.
+    ``statements`` holds only the statements that parsed."""
 
     statements: list[Statement]
     lines: list[int | None]
     errors: list[ParseError] = field(default_factory=list)
     path: str = "<text>"
+    cols: list[int | None] = field(default_factory=list)
+    pointers: list[str | None] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -208,16 +229,26 @@ class _Line:
         tok = self.tok
         if tok.kind != "name" or not _IDENT.fullmatch(tok.text):
             raise self.fail(what)
+        if len(tok.text) > bounds.MAX_NAME_LENGTH:
+            raise _Fail(tok.col, f"{what.split(' (')[0]} of {len(tok.text)} characters is longer than {bounds.MAX_NAME_LENGTH}")
         return self.next()
 
     @staticmethod
-    def si(tok: _Tok, unit: TextUnit) -> float:
+    def si(tok: _Tok, unit: TextUnit, what: str = "") -> float:
+        """The SI value of a number token, refused at its column when it has none or lies beyond
+        the physical bound of its unit (``what`` names the field in the message)."""
         try:
-            return to_si(tok.text, unit)
+            value = to_si(tok.text, unit)
         except ConversionError as exc:
             raise _Fail(tok.col, f"{exc}: {_clip(tok.text)}") from None
+        limit, scale, name = _TEXT_BOUND[unit]
+        if not -limit <= value <= limit:
+            label = f"{what} = " if what else ""
+            raise _Fail(tok.col, f"{label}{_clip(tok.text)} {unit.value} is beyond the {name} of "
+                                 f"\u00b1{limit * scale:.6g} {unit.value}")
+        return value
 
-    def values(self, unit: TextUnit, count: int | None) -> tuple[tuple[float, ...], _Tok]:
+    def values(self, unit: TextUnit, count: int | None, names: tuple[str, ...] = ()) -> tuple[tuple[float, ...], _Tok]:
         """``'(' num {',' num} ')' unit`` with exactly ``count`` numbers when given."""
         open_tok = self.tok
         self.punct("(")
@@ -225,11 +256,14 @@ class _Line:
         while self.tok.kind == "punct" and self.tok.text == ",":
             self.next()
             nums.append(self.number())
+            if count is None and len(nums) > bounds.MAX_JOINTS:
+                raise _Fail(nums[-1].col, f"more than {bounds.MAX_JOINTS} joint values")
         self.punct(")", " or ','" if count is None or len(nums) < count else "")
         if count is not None and len(nums) != count:
             raise _Fail(open_tok.col, f"expected {count} values in parentheses, found {len(nums)}")
         u = self.unit((unit,))
-        return tuple(self.si(t, u) for t in nums), open_tok
+        labels = names or tuple(f"J{i + 1}" for i in range(len(nums)))
+        return tuple(self.si(t, u, what) for t, what in zip(nums, labels)), open_tok
 
     def end(self) -> None:
         if self.tok.kind != "end":
@@ -253,23 +287,25 @@ class _Line:
             joint = int(m.group(1))
             if joint < 1:
                 raise _Fail(jt.col, "joints are numbered from J1")
+            if joint > bounds.MAX_JOINTS:
+                raise _Fail(jt.col, f"J{joint} is beyond the highest joint number, J{bounds.MAX_JOINTS}")
             self.next()
             self.keyword("TO")
             num = self.number()
             u = self.unit((TextUnit.DEG,))
-            return self.action(Drive, {"joint": joint, "target": self.si(num, u)}, cartesian=False)
+            return self.action(Drive, {"joint": joint, "target": self.si(num, u, f"J{joint}")}, cartesian=False)
         if word == "DRAW":
             self.keyword("TO")
-            xyz, _ = self.values(TextUnit.MM, 3)
+            xyz, _ = self.values(TextUnit.MM, 3, _XYZ)
             return self.action(Draw, {"position": xyz}, cartesian=True)
         if word == "ROTATE":
             self.keyword("TO")
-            rpy, _ = self.values(TextUnit.DEG, 3)
+            rpy, _ = self.values(TextUnit.DEG, 3, _RPY)
             return self.action(Rotate, {"rpy": rpy}, cartesian=True)
         if word == "MOVES":
             self.keyword("TO")
-            xyz, _ = self.values(TextUnit.MM, 3)
-            rpy, _ = self.values(TextUnit.DEG, 3)
+            xyz, _ = self.values(TextUnit.MM, 3, _XYZ)
+            rpy, _ = self.values(TextUnit.DEG, 3, _RPY)
             return self.action(Moves, {"position": xyz, "rpy": rpy}, cartesian=True)
         if word == "SPEED":
             speed = self.speed()
@@ -296,6 +332,8 @@ class _Line:
                     while self.tok.kind == "punct" and self.tok.text == ",":
                         self.next()
                         args.append(self.ident("an object or feature name").text)
+                        if len(args) > bounds.MAX_TASK_ARGS:
+                            raise _Fail(self.toks[self.i - 1].col, f"more than {bounds.MAX_TASK_ARGS} task arguments")
                 self.punct(")", " or ','")
             self.end()
             return TaskCall(name=name.text, args=tuple(args))
@@ -304,7 +342,7 @@ class _Line:
     def speed(self) -> Speed:
         num = self.number("a speed")
         u = self.unit(tuple(_SPEED_UNITS))
-        value = self.si(num, u)
+        value = self.si(num, u, "speed")
         if not value > 0.0:
             raise _Fail(num.col, f"a speed must be above zero, got {_clip(num.text)} {u.value}")
         return Speed(value=value, unit=_SPEED_UNITS[u])
@@ -341,7 +379,7 @@ class _Line:
                     self.punct(">", " after UNTIL FORCE")
                     num = self.number("a force")
                     self.unit((TextUnit.NEWTON,))
-                    value = self.si(num, TextUnit.NEWTON)
+                    value = self.si(num, TextUnit.NEWTON, "force")
                     if not value > 0.0:
                         raise _Fail(num.col, f"a force threshold must be above zero, got {_clip(num.text)} N")
                     fields["until"] = UntilForce(newtons=value)
@@ -352,7 +390,7 @@ class _Line:
                     self.next()
                     num = self.number("a time")
                     self.unit((TextUnit.SECOND,))
-                    value = self.si(num, TextUnit.SECOND)
+                    value = self.si(num, TextUnit.SECOND, "time")
                     if not value > 0.0:
                         raise _Fail(num.col, f"a time limit must be above zero, got {_clip(num.text)} s")
                     fields["until"] = UntilTime(seconds=value)
@@ -382,15 +420,29 @@ def parse_statement(text: str) -> Statement:
     return result.statements[0]
 
 
+def _too_large(text: str | bytes) -> ParseError | None:
+    if len(text) > bounds.MAX_PROGRAM_BYTES:
+        return ParseError(f"program of {len(text)} characters is over the bound of {bounds.MAX_PROGRAM_BYTES}")
+    return None
+
+
 def parse_program(text: str, path: str = "<text>") -> ParsedProgram:
     """Parse the text form; never raises for bad input, returns every error instead."""
+    too_large = _too_large(text)
+    if too_large is not None:
+        return ParsedProgram([], [], [too_large], path)
     statements: list[Statement] = []
     lines: list[int | None] = []
+    cols: list[int | None] = []
     errors: list[ParseError] = []
     for number, raw in enumerate(text.split("\n"), start=1):
         body = _strip_comment(raw)
         if not body.strip():
             continue
+        if len(statements) >= bounds.MAX_PROGRAM_STATEMENTS:
+            errors.append(ParseError(f"more than {bounds.MAX_PROGRAM_STATEMENTS} statements in one program", number, 1))
+            break
+        col = len(body) - len(body.lstrip()) + 1
         try:
             toks = _tokenize(body)
             statement = _Line(toks).statement()
@@ -399,73 +451,84 @@ def parse_program(text: str, path: str = "<text>") -> ParsedProgram:
             continue
         except ValidationError as exc:  # a model rule the grammar did not already enforce
             first = exc.errors()[0]
-            errors.append(ParseError(f"invalid statement: {first['msg']}", number, len(raw) - len(raw.lstrip()) + 1))
+            where = ".".join(str(p) for p in first["loc"] if not (isinstance(p, str) and p.isupper()))
+            errors.append(ParseError(f"invalid statement: {where + ': ' if where else ''}{first['msg']}", number, col))
             continue
         statements.append(statement)
         lines.append(number)
-    return ParsedProgram(statements, lines, errors, path)
+        cols.append(col)
+    return ParsedProgram(statements, lines, errors, path, cols=cols)
 
 
-def _json_errors(exc: ValidationError) -> list[ParseError]:
-    out = []
-    for err in exc.errors():
-        loc = list(err["loc"])
-        index = loc[0] if loc and isinstance(loc[0], int) else None
-        fieldpath = ".".join(str(p) for p in loc[1:] if not (isinstance(p, str) and p.isupper()))
-        where = f"{fieldpath}: " if fieldpath else ""
-        out.append(ParseError(f"{where}{err['msg']}", statement=index))
-    return out
-
-
-class _NonFinite(ValueError):
-    pass
-
-
-def _reject_constant(name: str) -> float:
-    raise _NonFinite(f"not a number of the language: {name} (numbers must be finite)")
-
-
-def _finite_float(text: str) -> float:
-    value = float(text)
-    if value != value or value in (float("inf"), float("-inf")):
-        raise _NonFinite(f"number too large: {_clip(text)}")
-    return value
-
-
-def parse_json(text: str, path: str = "<json>") -> ParsedProgram:
-    """The JSON form (a list of statement objects) -> statements; errors located by statement."""
+def parse_json(text: str | bytes, path: str = "<json>") -> ParsedProgram:
+    """The JSON form (a list of statement objects) -> statements, decoded strictly (no NaN,
+    Infinity, overflowing number or repeated key); every error carries the JSON pointer of the
+    fault (``/3/target``), a syntax error its line and column."""
+    too_large = _too_large(text)
+    if too_large is not None:
+        return ParsedProgram([], [], [too_large], path)
     try:
-        data = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
-    except _NonFinite as exc:
-        return ParsedProgram([], [], [ParseError(str(exc))], path)
-    except json.JSONDecodeError as exc:
-        return ParsedProgram([], [], [ParseError(f"not valid JSON: {exc.msg}", exc.lineno, exc.colno)], path)
-    except RecursionError:
-        return ParsedProgram([], [], [ParseError("JSON nested too deeply")], path)
+        data = loads_located(text)
+    except JSONFormFault as exc:
+        return ParsedProgram([], [], [_json_fault(exc)], path)
     if not isinstance(data, list):
-        return ParsedProgram([], [], [ParseError("a JSON program is a list of statement objects")], path)
+        return ParsedProgram([], [], [ParseError("a JSON program is a list of statement objects", pointer="")], path)
+    if len(data) > bounds.MAX_PROGRAM_STATEMENTS:
+        return ParsedProgram(
+            [], [], [ParseError(f"{len(data)} statements is more than the {bounds.MAX_PROGRAM_STATEMENTS} of one program", pointer="")], path
+        )
     statements: list[Statement] = []
+    pointers: list[str | None] = []
     errors: list[ParseError] = []
     for i, item in enumerate(data):
         try:
-            statements.extend(program_from_json([item]))
+            statements.append(statement_adapter.validate_python(item))
         except ValidationError as exc:
-            errors.extend(ParseError(e.message, statement=i) for e in _json_errors(exc))
-    lines: list[int | None] = [None] * len(statements)
-    return ParsedProgram(statements, lines, errors, path)
+            errors.extend(ParseError(f.message, statement=i, pointer=f.pointer) for f in validation_faults(exc, (i,)))
+            continue
+        pointers.append(pointer((i,)))
+    n = len(statements)
+    return ParsedProgram(statements, [None] * n, errors, path, cols=[None] * n, pointers=pointers)
 
 
-def parse_file(path: str | Path) -> ParsedProgram:
-    """Read a program file handed in: ``.json`` is the JSON form, anything else the text form."""
+_JSON_AT = re.compile(r": line (\d+) column (\d+) \(char \d+\)$")
+
+
+def _json_fault(exc: JSONFormFault) -> ParseError:
+    """A document-level fault: a located value keeps its pointer, a syntax error its line:col."""
+    if exc.pointer:
+        index = exc.pointer.split("/")[1]
+        return ParseError(exc.message, statement=int(index) if index.isdigit() else None, pointer=exc.pointer)
+    m = _JSON_AT.search(exc.message)
+    if m is not None:
+        return ParseError(f"not valid JSON: {exc.message[: m.start()]}", int(m.group(1)), int(m.group(2)))
+    return ParseError(f"not valid JSON: {exc.message}")
+
+
+def read_program_file(path: str | Path) -> str:
+    """The text of a program file handed in, read up to ``MAX_PROGRAM_BYTES`` (so a device or
+    a pipe that never ends cannot hold the reader); raises ``FileFormatError`` naming the file."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(p, "rb") as f:
+            data = f.read(bounds.MAX_PROGRAM_BYTES + 1)
     except FileNotFoundError:
         raise FileFormatError(p, "file does not exist") from None
     except IsADirectoryError:
         raise FileFormatError(p, "is a directory, not a program file") from None
-    except UnicodeDecodeError:
-        raise FileFormatError(p, "not a UTF-8 text file") from None
-    if p.suffix.lower() == ".json":
+    except OSError as exc:
+        raise FileFormatError(p, f"cannot read: {exc.strerror or exc}") from None
+    if len(data) > bounds.MAX_PROGRAM_BYTES:
+        raise FileFormatError(p, f"larger than {bounds.MAX_PROGRAM_BYTES // (1024 * 1024)} MiB, the bound of a program file; stopped reading there")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(p, f"not a UTF-8 text file (byte {exc.start})") from None
+
+
+def parse_file(path: str | Path) -> ParsedProgram:
+    """Read a program file handed in: ``.json`` is the JSON form, anything else the text form."""
+    text = read_program_file(path)
+    if Path(path).suffix.lower() == ".json":
         return parse_json(text, str(path))
     return parse_program(text, str(path))

@@ -31,11 +31,48 @@ from __future__ import annotations
 from enum import Enum
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, TypeAdapter, model_validator
+from pydantic_core import PydanticCustomError
 
+from shared.language import bounds
+from shared.language.bounds import describe
 from shared.language.units import TextUnit
 
-Vec3 = tuple[float, float, float]
+
+def _within(limit: float, unit: str, what: str):
+    """A validator refusing ``|v| > limit``; the message gives the value, the unit and the bound."""
+
+    def check(v: float) -> float:
+        if not -limit <= v <= limit:
+            raise PydanticCustomError(
+                "out_of_bounds", "{value} {unit} is beyond the {what} of \u00b1{limit} {unit}",
+                {"value": describe(v), "unit": unit, "what": what, "limit": describe(limit)},
+            )
+        return v
+
+    return AfterValidator(check)
+
+
+def _at_most(limit: float, unit: str, what: str):
+    def check(v: float) -> float:
+        if v > limit:
+            raise PydanticCustomError(
+                "out_of_bounds", "{value} {unit} is above the {what} of {limit} {unit}",
+                {"value": describe(v), "unit": unit, "what": what, "limit": describe(limit)},
+            )
+        return v
+
+    return AfterValidator(check)
+
+
+Metres = Annotated[float, _within(bounds.WORKSPACE_M, "m", "workspace bound")]
+"""A coordinate of a Cartesian target (finite, within the workspace bound)."""
+Radians = Annotated[float, _within(bounds.MAX_ANGLE_RAD, "rad", "angle bound")]
+"""A joint angle or roll/pitch/yaw (finite, at most two turns either way)."""
+Vec3 = tuple[Metres, Metres, Metres]
+Rpy = tuple[Radians, Radians, Radians]
+Name = Annotated[str, Field(min_length=1, max_length=bounds.MAX_NAME_LENGTH, pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
+"""An EVENT or TASK name, or a task argument: an identifier of at most ``MAX_NAME_LENGTH``."""
 
 
 class Frame(str, Enum):
@@ -83,28 +120,40 @@ class Mode(str, Enum):
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+SPEED_BOUND: dict[SpeedUnit, float] = {
+    SpeedUnit.FRACTION: bounds.MAX_SPEED_FRACTION,
+    SpeedUnit.M_PER_S: bounds.MAX_LINEAR_SPEED_M_S,
+    SpeedUnit.RAD_PER_S: bounds.MAX_ANGULAR_SPEED_RAD_S,
+}
+"""The physical bound of a speed in each unit (the robot's own maximum is the checks' business)."""
 
 
 class Speed(_Model):
-    """A speed: ``value`` in ``unit``; a fraction is in (0, 1]."""
+    """A speed: ``value`` in ``unit``; a fraction of the robot's maximum is in (0, 1] for the
+    checks and the planner (the model itself refuses only what no robot can mean)."""
 
     value: float = Field(gt=0.0)
     unit: SpeedUnit
 
-    @field_validator("value")
-    @classmethod
-    def _finite(cls, v: float) -> float:
-        if v != v or v in (float("inf"), float("-inf")):
-            raise ValueError("speed must be a finite number")
-        return v
+    @model_validator(mode="after")
+    def _bounded(self) -> "Speed":
+        limit = SPEED_BOUND[self.unit]
+        if self.value > limit:
+            raise PydanticCustomError(
+                "out_of_bounds", "value {value} {unit} is above the speed bound of {limit} {unit}",
+                {"value": describe(self.value), "unit": self.unit.value, "limit": describe(limit)},
+            )
+        return self
 
 
 class UntilForce(_Model):
     """Stop when the magnitude of the measured force exceeds ``newtons``."""
 
     kind: Literal["force"] = "force"
-    newtons: float = Field(gt=0.0)
+    newtons: Annotated[float, Field(gt=0.0), _at_most(bounds.MAX_FORCE_N, "N", "force bound")]
 
 
 class UntilContact(_Model):
@@ -117,7 +166,7 @@ class UntilTime(_Model):
     """Stop after ``seconds`` of motion."""
 
     kind: Literal["time"] = "time"
-    seconds: float = Field(gt=0.0)
+    seconds: Annotated[float, Field(gt=0.0), _at_most(bounds.MAX_TIME_S, "s", "time bound")]
 
 
 Until = Annotated[Union[UntilForce, UntilContact, UntilTime], Field(discriminator="kind")]
@@ -134,15 +183,15 @@ class Move(_Action):
     """Joint-interpolated move to a full joint vector (radians)."""
 
     kind: Literal["MOVE"] = "MOVE"
-    joints: tuple[float, ...] = Field(min_length=1)
+    joints: tuple[Radians, ...] = Field(min_length=1, max_length=bounds.MAX_JOINTS)
 
 
 class Drive(_Action):
     """Move one joint (1-based number) to ``target`` (radians)."""
 
     kind: Literal["DRIVE"] = "DRIVE"
-    joint: int = Field(ge=1)
-    target: float
+    joint: int = Field(ge=1, le=bounds.MAX_JOINTS)
+    target: Radians
 
 
 class Draw(_Action):
@@ -157,7 +206,7 @@ class Rotate(_Action):
     """Rotate the tool in place to ``rpy`` (fixed-axis XYZ roll, pitch, yaw; radians in ``frame``)."""
 
     kind: Literal["ROTATE"] = "ROTATE"
-    rpy: Vec3
+    rpy: Rpy
     frame: Frame = DEFAULT_FRAME
 
 
@@ -166,7 +215,7 @@ class Moves(_Action):
 
     kind: Literal["MOVES"] = "MOVES"
     position: Vec3
-    rpy: Vec3
+    rpy: Rpy
     frame: Frame = DEFAULT_FRAME
 
 
@@ -188,15 +237,15 @@ class Event(_Model):
     """A named mark; the robot reports it when execution reaches it."""
 
     kind: Literal["EVENT"] = "EVENT"
-    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+    name: Name
 
 
 class TaskCall(_Model):
     """A task the robot knows, by name, with object or feature names as arguments."""
 
     kind: Literal["TASK"] = "TASK"
-    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
-    args: tuple[str, ...] = ()
+    name: Name
+    args: tuple[Name, ...] = Field(default=(), max_length=bounds.MAX_TASK_ARGS)
 
 
 Action = Union[Move, Drive, Draw, Rotate, Moves]
@@ -210,7 +259,9 @@ PARAMETER_KINDS = frozenset({"SPEED", "MODE", "EVENT"})
 TASK_KINDS = frozenset({"TASK"})
 
 statement_adapter: TypeAdapter[Statement] = TypeAdapter(Statement)
-program_adapter: TypeAdapter[list[Statement]] = TypeAdapter(list[Statement])
+program_adapter: TypeAdapter[list[Statement]] = TypeAdapter(
+    Annotated[list[Statement], Field(max_length=bounds.MAX_PROGRAM_STATEMENTS)]
+)
 
 
 def is_action(statement: object) -> bool:

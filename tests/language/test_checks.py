@@ -11,7 +11,7 @@ from shared.cells.loader import load_cell
 from shared.errors import InputError, JointLimitError
 from shared.language.checks import RULES, check_program
 from shared.language.parser import parse_json, parse_program
-from shared.language.statements import program_from_json, program_to_json
+from shared.language.statements import Draw, Drive, Frame, Move, Moves, Rotate, UntilForce, program_from_json, program_to_json
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, find_task, resolve_name
 from shared.robots.loader import load_robot
 from shared.spatial import invert
@@ -31,7 +31,7 @@ def run(text: str, cell=None, robot=None, q_start=None):
     parsed = parse_program(text, "t.tp")
     assert parsed.ok, parsed.error_lines()
     robot = robot or cell.robot
-    return check_program(parsed.statements, robot, cell, q_start=q_start, lines=parsed.lines)
+    return check_program(parsed.statements, robot, cell, q_start=q_start, lines=parsed.lines, cols=parsed.cols)
 
 
 def rules(result) -> list[tuple[int | None, str]]:
@@ -179,20 +179,23 @@ def test_nothing_that_moves_the_arm_may_follow_an_unpredictable_task(cell) -> No
     assert rules(unknown) == [(1, "names"), (2, "program")]
 
 
-def test_json_programs_are_located_by_statement(cell) -> None:
-    statements = parse_program("EVENT a\nMOVE (1, 2) deg").statements
+def test_json_programs_are_located_by_json_pointer(cell) -> None:
     import json
 
-    parsed = parse_json(json.dumps(program_to_json(statements)))
-    result = check_program(parsed.statements, cell.robot, cell, lines=parsed.lines)
+    statements = parse_program("EVENT a\nMOVE (1, 2) deg\nDRIVE J2 TO 90 deg").statements
+    document = program_to_json(statements)
+    document.insert(0, {"kind": "EVENT", "name": "bad name"})  # refused by the parser: the pointers skip it
+    parsed = parse_json(json.dumps(document))
+    result = check_program(parsed.statements, cell.robot, cell, lines=parsed.lines, pointers=parsed.pointers)
     assert [p.format("p.json") for p in result.problems] == [
-        "p.json: statement 2: MOVE gives 2 joint values; robot 'puma562' has 6 joints"
+        "p.json: /2/joints: MOVE gives 2 joint values; robot 'puma562' has 6 joints",
+        "p.json: /3/target: DRIVE J2: joint 2 at 90.000 deg is outside its range [-205.000, 45.000] deg",
     ]
 
 
-def test_problem_format_has_file_and_line(cell) -> None:
-    result = run("EVENT a\n\nDRIVE J9 TO 0 deg", cell)
-    assert [p.format("x.tp") for p in result.problems] == ["x.tp:3: DRIVE J9: robot 'puma562' has joints J1 to J6"]
+def test_problem_format_has_file_line_and_column(cell) -> None:
+    result = run("EVENT a\n\n   DRIVE J9 TO 0 deg", cell)
+    assert [p.format("x.tp") for p in result.problems] == ["x.tp:3:4: DRIVE J9: robot 'puma562' has joints J1 to J6"]
     assert result.problems[0].index == 1
 
 
@@ -224,11 +227,14 @@ def test_checks_never_crash_on_random_programs(cell) -> None:
     from test_roundtrip_fuzz import statement  # the statement strategy of the round-trip tests
 
     wild = st.one_of(statement, st.sampled_from([
-        # values the models accept but no robot can use
-        parse_json('[{"kind": "DRAW", "position": [1e308, -1e308, 0]}]').statements[0],
-        parse_json('[{"kind": "MOVE", "joints": [0, 0, 0, 0, 0, 1e300]}]').statements[0],
-        parse_json('[{"kind": "ROTATE", "rpy": [1e300, 0, 0], "frame": "TOOL"}]').statements[0],
-        parse_json('[{"kind": "DRIVE", "joint": 1000000, "target": 1}]').statements[0],
+        # values within the physical bounds that no robot here can use
+        parse_json('[{"kind": "DRAW", "position": [100, -100, 0]}]').statements[0],
+        parse_json('[{"kind": "MOVE", "joints": [0, 0, 0, 0, 0, 12.5]}]').statements[0],
+        parse_json('[{"kind": "ROTATE", "rpy": [12.5, 0, 0], "frame": "TOOL"}]').statements[0],
+        parse_json('[{"kind": "DRIVE", "joint": 32, "target": 1}]').statements[0],
+        # values beyond them, in statements built around the models
+        Draw.model_construct(position=(1e308, -1e308, 0.0), frame=Frame.WORLD, speed=None, until=None),
+        Drive.model_construct(joint=1000000, target=1.0, speed=None, until=None),
     ]))
 
     @settings(max_examples=60, deadline=None)
@@ -243,17 +249,31 @@ def test_checks_never_crash_on_random_programs(cell) -> None:
 
 
 def test_non_finite_values_are_problems_not_crashes(cell) -> None:
+    from pydantic import ValidationError
+
     nan, inf = float("nan"), float("inf")
-    statements = program_from_json([
+    document = [
         {"kind": "DRAW", "position": [nan, 0, 0]},
         {"kind": "MOVES", "position": [inf, 0, 0], "rpy": [0, 0, 0]},
         {"kind": "MOVE", "joints": [0, 0, 0, 0, 0, -inf]},
         {"kind": "DRIVE", "joint": 1, "target": nan},
         {"kind": "ROTATE", "rpy": [0, 0, 0], "until": {"kind": "force", "newtons": inf}},
-    ])
+    ]
+    with pytest.raises(ValidationError) as refused:  # the models refuse every one
+        program_from_json(document)
+    assert len(refused.value.errors()) == 5
+    # statements built around the models are problems of the checks, never crashes
+    statements = [
+        Draw.model_construct(position=(nan, 0.0, 0.0), frame=Frame.WORLD, speed=None, until=None),
+        Moves.model_construct(position=(inf, 0.0, 0.0), rpy=(0.0, 0.0, 0.0), frame=Frame.WORLD, speed=None, until=None),
+        Move.model_construct(joints=(0.0, 0.0, 0.0, 0.0, 0.0, -inf), speed=None, until=None),
+        Drive.model_construct(joint=1, target=nan, speed=None, until=None),
+        Rotate.model_construct(rpy=(0.0, 0.0, 0.0), frame=Frame.WORLD, speed=None, until=UntilForce.model_construct(kind="force", newtons=inf)),
+    ]
     result = check_program(statements, cell.robot, cell)
     assert [(p.index, p.rule) for p in result.problems] == [(i, "values") for i in range(5)]
     assert result.problems[2].message == "MOVE: joints is not a finite number"
+    assert result.problems[4].json_pointer == "/4/until/newtons"
 
 
 def test_any_urdf_robot_without_a_cell() -> None:

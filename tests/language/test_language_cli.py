@@ -61,7 +61,7 @@ def test_parse_usage_and_file_errors(tmp_path: Path) -> None:
     broken = tmp_path / "b.json"
     broken.write_text('[{"kind": "MOVE", "joints": "x"}]')
     out = tp("parse", broken)
-    assert out.returncode == 1 and "statement 1: joints" in out.stderr
+    assert out.returncode == 1 and "b.json: /0/joints: " in out.stderr
 
 
 def test_check_example_is_clean() -> None:
@@ -75,12 +75,13 @@ def test_check_example_is_clean() -> None:
 
 def test_check_prints_one_line_per_problem(tmp_path: Path) -> None:
     prog = tmp_path / "p.tp"
-    prog.write_text("MOVE (1, 2, 3) deg\n# fine\nDRIVE J2 TO 80 deg\nTASK fly(peg)\nDRIVE J1 TO 0 deg\nMODE odd\n")
+    prog.write_text("MOVE (1, 2, 3) deg\n# fine\n  DRIVE J2 TO 80 deg\nTASK fly(peg)\nDRIVE J1 TO 0 deg\nMODE odd\n")
     out = tp("check", prog, "--robot", "puma562", "--cell", PEG_CELL)
     assert out.returncode == 1
     lines = out.stdout.strip().splitlines()
     assert lines[-1] == f"{prog}:6:6: expected FORCE or POSITION, found 'odd'"
-    assert [line.split(": ")[0] for line in lines[:-1]] == [f"{prog}:1", f"{prog}:3", f"{prog}:4", f"{prog}:5"]
+    # every problem as file:line:col, as the README promises (the column of the statement)
+    assert [line.split(": ")[0] for line in lines[:-1]] == [f"{prog}:1:1", f"{prog}:3:3", f"{prog}:4:1", f"{prog}:5:1"]
     js = json.loads(tp("check", prog, "--robot", "puma562", "--cell", PEG_CELL, "--json").stdout)
     assert [p["rule"] for p in js["problems"]] == ["joints", "limits", "names", "program"]
     assert js["parse_errors"][0]["line"] == 6

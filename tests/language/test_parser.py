@@ -185,12 +185,15 @@ def test_json_form_input_and_its_errors() -> None:
     assert result.lines == [None, None]
     bad = parse_json(json.dumps([good[0], {"kind": "MOVE", "joints": []}, {"kind": "JUMP"}]), "p.json")
     assert [e.statement for e in bad.errors] == [1, 2]
-    assert bad.error_lines()[0].startswith("p.json: statement 2: joints")
-    syntax = parse_json('[{"kind": "EVENT",\n "name": }]')
-    assert syntax.errors[0].line == 2
+    assert bad.error_lines()[0].startswith("p.json: /1/joints: ")
+    assert bad.error_lines()[1].startswith("p.json: /2/kind: ")
+    syntax = parse_json('[{"kind": "EVENT",\n "name": }]', "s.json")
+    assert (syntax.errors[0].line, syntax.errors[0].col) == (2, 10)
+    assert syntax.error_lines()[0].startswith("s.json:2:10: not valid JSON")
     assert not parse_json('{"kind": "EVENT"}').ok
     # the text form has finite numbers only, so the JSON form may not smuggle in others
-    assert "must be finite" in parse_json('[{"kind": "DRIVE", "joint": 1, "target": NaN}]').errors[0].message
+    nan = parse_json('[{"kind": "EVENT", "name": "a"}, {"kind": "DRIVE", "joint": 1, "target": NaN}]', "n.json")
+    assert nan.error_lines() == ["n.json: /1/target: NaN is not a JSON number (only finite numbers are accepted)"]
     assert "too large" in parse_json('[{"kind": "DRIVE", "joint": 1, "target": -1e999}]').errors[0].message
 
 
