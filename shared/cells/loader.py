@@ -1,4 +1,10 @@
-"""Read a cell file (TOML) into a ``Cell``; every error names the file and the field."""
+"""Read a cell file (TOML) into a ``Cell``; every error names the file and the field.
+
+Every number is checked (``shared.robots.file_numbers``): finite, within the workspace and
+angle bounds in SI whatever the file's units, sizes and radii above zero, colours 0..255,
+camera intrinsics in range; feature kinds are ``point`` or ``hole``. Fields are named as the
+file spells them: ``objects[2].shapes[0].size``.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from shared.cells.cell import Cell, CellObject, Feature, ZoneDistances
 from shared.errors import FileFormatError, TeleprogError
 from shared.paths import ASSETS_DIR
+from shared.robots.file_numbers import RGB, Angle, Pixels, Rpy, Scale3, Size, Size3, Vec3, file_error, units_context
 from shared.robots.loader import load_robot, shape_from_spec
 from shared.spatial import pose_to_transform
 from shared.vision.camera import Camera
@@ -22,11 +29,12 @@ DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
 _LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
 _ANGLE_SCALE = {"rad": 1.0, "deg": np.pi / 180.0}
 
-Vec3 = tuple[float, float, float]
+FEATURE_KINDS = ("point", "hole")
+"""What a feature may be: a plain point, or a hole mouth (its z axis out of the hole)."""
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class _Units(_Strict):
@@ -36,12 +44,12 @@ class _Units(_Strict):
 
 class _Pose(_Strict):
     xyz: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
 
 
 class _RobotSpec(_Pose):
     ref: str
-    q_home: list[float] | None = None
+    q_home: list[Angle] | None = None
     tcp: _Pose = _Pose()
 
 
@@ -51,11 +59,11 @@ class _FrameSpec(_Pose):
 
 class _ShapeSpec(_Pose):
     shape: Literal["box", "sphere", "cylinder", "capsule", "mesh"]
-    size: Vec3 | None = None
-    radius: float | None = Field(default=None, gt=0)
-    length: float | None = Field(default=None, gt=0)
+    size: Size3 | None = None
+    radius: Size | None = None
+    length: Size | None = None
     mesh: str | None = None
-    scale: Vec3 = (1.0, 1.0, 1.0)
+    scale: Scale3 = (1.0, 1.0, 1.0)
 
 
 class _ObjectSpec(_Pose):
@@ -63,7 +71,7 @@ class _ObjectSpec(_Pose):
     frame: str = "world"
     movable: bool = False
     held: bool = False
-    color: tuple[int, int, int] = (180, 180, 180)
+    color: RGB = (180, 180, 180)
     shapes: list[_ShapeSpec] = Field(min_length=1)
     keypoints: list[Vec3] = []
 
@@ -71,12 +79,12 @@ class _ObjectSpec(_Pose):
 class _FeatureSpec(_Pose):
     name: str = Field(min_length=1)
     frame: str = "world"
-    kind: str = "point"
+    kind: Literal["point", "hole"] = "point"
 
 
 class _ZoneSpec(_Strict):
-    quasi: float = Field(gt=0)
-    operation: float = Field(gt=0)
+    quasi: Size
+    operation: Size
 
 
 class _CameraSpec(_Pose):
@@ -85,12 +93,12 @@ class _CameraSpec(_Pose):
 
     name: str = Field(min_length=1)
     frame: str = "world"
-    fx: float = Field(gt=0)
-    fy: float = Field(gt=0)
-    cx: float
-    cy: float
-    width: int = Field(gt=0)
-    height: int = Field(gt=0)
+    fx: Pixels = Field(gt=0)
+    fy: Pixels = Field(gt=0)
+    cx: Pixels
+    cy: Pixels
+    width: int = Field(gt=0, le=100_000)
+    height: int = Field(gt=0, le=100_000)
 
 
 class _CellFile(_Strict):
@@ -114,17 +122,17 @@ def load_cell(path: str | Path) -> Cell:
     except FileNotFoundError:
         raise FileFormatError(path, "file does not exist") from None
     except IsADirectoryError:
-        raise FileFormatError(path, "is a directory, not a cell file") from None
+        raise FileFormatError(path, "is a folder, not a cell file") from None
     except UnicodeDecodeError:
         raise FileFormatError(path, "not a text file") from None
     except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(path, f"not valid TOML: {exc}") from None
+    units_raw = raw.get("units") if isinstance(raw.get("units"), dict) else {}
+    context = units_context(units_raw.get("length", "m"), units_raw.get("angle", "rad"))
     try:
-        spec = _CellFile.model_validate(raw)
+        spec = _CellFile.model_validate(raw, context=context)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        field = ".".join(str(p) for p in first["loc"]) or "(top level)"
-        raise FileFormatError(path, first["msg"], field) from None
+        raise file_error(path, exc) from None
 
     ls, as_ = _LENGTH_SCALE[spec.units.length], _ANGLE_SCALE[spec.units.angle]
 
@@ -161,12 +169,12 @@ def load_cell(path: str | Path) -> Cell:
 
     objects: list[CellObject] = []
     for i, ospec in enumerate(spec.objects):
-        where = f"objects.{i}"
+        where = f"objects[{i}]"
         if ospec.name in (o.name for o in objects):
             raise FileFormatError(path, f"object name {ospec.name!r} is used twice", f"{where}.name")
         if ospec.frame not in frames:
             raise FileFormatError(path, f"frame {ospec.frame!r} is not defined; valid: {', '.join(frames)}", f"{where}.frame")
-        shapes = tuple(shape_from_spec(s, f"{where}.shapes.{k}", path, ls, as_) for k, s in enumerate(ospec.shapes))
+        shapes = tuple(shape_from_spec(s, f"{where}.shapes[{k}]", path, ls, as_) for k, s in enumerate(ospec.shapes))
         objects.append(
             CellObject(
                 name=ospec.name, world_T_object=frames[ospec.frame] @ pose(ospec), shapes=shapes,
@@ -177,15 +185,15 @@ def load_cell(path: str | Path) -> Cell:
     features: dict[str, Feature] = {}
     for i, fspec in enumerate(spec.features):
         if fspec.frame not in frames:
-            raise FileFormatError(path, f"frame {fspec.frame!r} is not defined; valid: {', '.join(frames)}", f"features.{i}.frame")
+            raise FileFormatError(path, f"frame {fspec.frame!r} is not defined; valid: {', '.join(frames)}", f"features[{i}].frame")
         features[fspec.name] = Feature(fspec.name, frames[fspec.frame] @ pose(fspec), fspec.kind)
 
     cameras: dict[str, Camera] = {}
     for i, cspec in enumerate(spec.cameras):
         if cspec.frame not in frames:
-            raise FileFormatError(path, f"frame {cspec.frame!r} is not defined; valid: {', '.join(frames)}", f"cameras.{i}.frame")
+            raise FileFormatError(path, f"frame {cspec.frame!r} is not defined; valid: {', '.join(frames)}", f"cameras[{i}].frame")
         if cspec.name in cameras:
-            raise FileFormatError(path, f"camera name {cspec.name!r} is used twice", f"cameras.{i}.name")
+            raise FileFormatError(path, f"camera name {cspec.name!r} is used twice", f"cameras[{i}].name")
         cameras[cspec.name] = Camera.pinhole(cspec.name, cspec.fx, cspec.fy, cspec.cx, cspec.cy,
                                              frames[cspec.frame] @ pose(cspec), cspec.width, cspec.height)
 

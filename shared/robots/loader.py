@@ -2,7 +2,8 @@
 
 Built-in robots live in ``assets/robots/<name>/robot.toml``. A ``.urdf`` path is loaded with
 pinocchio; its tool frame is the last link of the chain unless named. Errors name the file and
-the field.
+the field; every number is finite and within the bounds of ``shared.robots.file_numbers``
+(sizes above zero, colours 0..255).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from shared.errors import FileFormatError, UnknownNameError
 from shared.paths import ASSETS_DIR
 from shared.robots.description import DHJoint, LinkShape, RobotDescription
+from shared.robots.file_numbers import RGB, Angle, Length, Rpy, Scale3, Size, Size3, Vec3, file_error, units_context
 from shared.robots.model import Robot, build_dh_model
 from shared.spatial import pose_to_transform
 
@@ -28,16 +30,16 @@ _ANGLE_SCALE = {"rad": 1.0, "deg": np.pi / 180.0}
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class _JointSpec(_Strict):
-    a: float
-    alpha: float
-    d: float
-    offset: float = 0.0
+    a: Length
+    alpha: Angle
+    d: Length
+    offset: Angle = 0.0
     sign: Literal[1, -1] = 1
-    limits: tuple[float, float]
+    limits: tuple[Angle, Angle]
     name: str = ""
 
     @field_validator("limits")
@@ -49,8 +51,8 @@ class _JointSpec(_Strict):
 
 
 class _ToolSpec(_Strict):
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
 
 
 class _KinematicsSpec(_Strict):
@@ -65,14 +67,14 @@ class _KinematicsSpec(_Strict):
 class _ShapeSpec(_Strict):
     link: int = Field(ge=0)
     shape: Literal["box", "sphere", "cylinder", "capsule", "mesh"]
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    size: tuple[float, float, float] | None = None
-    radius: float | None = Field(default=None, gt=0)
-    length: float | None = Field(default=None, gt=0)
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Rpy = (0.0, 0.0, 0.0)
+    size: Size3 | None = None
+    radius: Size | None = None
+    length: Size | None = None
     mesh: str | None = None
-    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    color: tuple[int, int, int] = (200, 200, 200)
+    scale: Scale3 = (1.0, 1.0, 1.0)
+    color: RGB = (200, 200, 200)
 
 
 class _RobotFile(_Strict):
@@ -85,14 +87,8 @@ class _RobotFile(_Strict):
     fit: dict = {}
 
 
-def _format_validation(path: Path, err: ValidationError) -> FileFormatError:
-    first = err.errors()[0]
-    field = ".".join(str(p) for p in first["loc"]) or "(top level)"
-    return FileFormatError(path, first["msg"], field)
-
-
 def _shape_from_spec(spec: _ShapeSpec, index: int, path: Path, ls: float, as_: float, dof: int) -> LinkShape:
-    where = f"geometry.{index}"
+    where = f"geometry[{index}]"
     if spec.link > dof:
         raise FileFormatError(path, f"link {spec.link} does not exist (robot has links 0..{dof})", where + ".link")
     return shape_from_spec(spec, where, path, ls, as_, color=spec.color)
@@ -110,6 +106,8 @@ def shape_from_spec(spec, where: str, path: Path, ls: float, as_: float, color: 
     mesh_path = ""
     if spec.mesh is not None:
         mesh_file = (path.parent / spec.mesh).resolve()
+        if mesh_file.is_dir():
+            raise FileFormatError(path, f"{mesh_file} is a folder, not a mesh file", f"{where}.mesh")
         if not mesh_file.is_file():
             raise FileFormatError(path, f"mesh file {mesh_file} does not exist", f"{where}.mesh")
         mesh_path = str(mesh_file)
@@ -132,12 +130,18 @@ def load_description(path: Path) -> RobotDescription:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise FileFormatError(path, "file does not exist") from None
+    except IsADirectoryError:
+        raise FileFormatError(path, "is a folder, not a robot file") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(path, "not a UTF-8 text file") from None
     except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(path, f"not valid TOML: {exc}") from None
+    kin_raw = raw.get("kinematics") if isinstance(raw.get("kinematics"), dict) else {}
+    context = units_context(kin_raw.get("length_unit", "m"), kin_raw.get("angle_unit", "rad"))
     try:
-        spec = _RobotFile.model_validate(raw)
+        spec = _RobotFile.model_validate(raw, context=context)
     except ValidationError as exc:
-        raise _format_validation(path, exc) from None
+        raise file_error(path, exc) from None
     kin = spec.kinematics
     ls, as_ = _LENGTH_SCALE[kin.length_unit], _ANGLE_SCALE[kin.angle_unit]
     joints = tuple(

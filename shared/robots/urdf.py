@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from shared.errors import FileFormatError
+from shared.language.bounds import MAX_ANGLE_RAD, WORKSPACE_M
 from shared.robots.description import LinkShape, RobotDescription, UrdfJoint
 from shared.robots.model import Robot
 from shared.spatial import pose_to_transform
@@ -49,8 +50,12 @@ _MOVABLE = ("revolute", "continuous")
 _REFUSED = ("prismatic", "planar", "floating")
 
 
-def _floats(path: Path, text: str | None, count: int, field: str, default: tuple[float, ...] | None = None) -> tuple[float, ...]:
-    """Parse ``count`` whitespace-separated numbers from an attribute."""
+def _floats(
+    path: Path, text: str | None, count: int, field: str, default: tuple[float, ...] | None = None,
+    bound: float | None = None, unit: str = "m",
+) -> tuple[float, ...]:
+    """Parse ``count`` whitespace-separated finite numbers from an attribute, each at most
+    ``bound`` in magnitude when given (``unit`` spells it in the message)."""
     if text is None:
         if default is None:
             raise FileFormatError(path, "attribute is missing", field)
@@ -60,7 +65,9 @@ def _floats(path: Path, text: str | None, count: int, field: str, default: tuple
     except ValueError:
         raise FileFormatError(path, f"expected {count} numbers, got {text!r}", field) from None
     if len(values) != count or not all(math.isfinite(v) for v in values):
-        raise FileFormatError(path, f"expected {count} finite numbers, got {text!r}", field)
+        raise FileFormatError(path, f"expected {count} finite numbers, got {text[:80]!r}", field)
+    if bound is not None and any(abs(v) > bound for v in values):
+        raise FileFormatError(path, f"{text[:80]!r} is beyond the bound of \u00b1{bound:g} {unit}", field)
     return values
 
 
@@ -69,12 +76,12 @@ def _origin(path: Path, element: ET.Element, field: str) -> np.ndarray:
     origin = element.find("origin")
     if origin is None:
         return np.eye(4)
-    xyz = _floats(path, origin.get("xyz"), 3, f"{field} origin xyz", (0.0, 0.0, 0.0))
-    rpy = _floats(path, origin.get("rpy"), 3, f"{field} origin rpy", (0.0, 0.0, 0.0))
+    xyz = _floats(path, origin.get("xyz"), 3, f"{field} origin xyz", (0.0, 0.0, 0.0), WORKSPACE_M, "m")
+    rpy = _floats(path, origin.get("rpy"), 3, f"{field} origin rpy", (0.0, 0.0, 0.0), MAX_ANGLE_RAD, "rad")
     return pose_to_transform(np.array(xyz), np.array(rpy))  # URDF rpy is fixed-axis X, Y, Z
 
 
-def _resolve_mesh(path: Path, uri: str) -> Path | None:
+def _resolve_mesh(path: Path, uri: str, field: str | None = None) -> Path | None:
     """Find a mesh named by a URDF: a path relative to the URDF's folder, an absolute path, a
     ``file://`` URI, or ``package://<pkg>/<rest>`` looked up in the URDF's parent folders."""
     if uri.startswith("file://"):
@@ -88,31 +95,37 @@ def _resolve_mesh(path: Path, uri: str) -> Path | None:
                     return candidate.resolve()
         return None
     candidate = Path(uri) if Path(uri).is_absolute() else path.parent / uri
+    if candidate.is_dir():
+        raise FileFormatError(path, f"mesh {uri!r} is a folder, not a mesh file", field)
     return candidate.resolve() if candidate.is_file() else None
 
 
-def _material_colors(root: ET.Element) -> dict[str, tuple[int, int, int]]:
+def _material_colors(path: Path, root: ET.Element) -> dict[str, tuple[int, int, int]]:
     out: dict[str, tuple[int, int, int]] = {}
     for material in root.findall("material"):
         color = material.find("color")
         if material.get("name") and color is not None and color.get("rgba"):
-            rgba = _rgba(color.get("rgba", ""))
+            rgba = _rgba(path, color.get("rgba", ""), f"material {material.get('name', '')!r} color rgba")
             if rgba is not None:
                 out[material.get("name", "")] = rgba
     return out
 
 
-def _rgba(text: str) -> tuple[int, int, int] | None:
+def _rgba(path: Path, text: str, field: str) -> tuple[int, int, int] | None:
+    """RGB in 0..255 from a URDF ``rgba`` (four numbers in 0..1); None when it is not four
+    numbers (the link keeps the default colour); refused when a number is outside 0..1."""
     try:
         values = [float(v) for v in text.split()]
     except ValueError:
         return None
     if len(values) != 4:
         return None
-    return tuple(int(round(255 * min(max(v, 0.0), 1.0))) for v in values[:3])  # type: ignore[return-value]
+    if not all(0.0 <= v <= 1.0 for v in values):  # NaN fails too
+        raise FileFormatError(path, f"{text[:80]!r}: each of r, g, b, a must be in 0..1", field)
+    return tuple(int(round(255 * v)) for v in values[:3])  # type: ignore[return-value]
 
 
-def _link_color(link: ET.Element, materials: dict[str, tuple[int, int, int]]) -> tuple[int, int, int]:
+def _link_color(path: Path, link: ET.Element, materials: dict[str, tuple[int, int, int]]) -> tuple[int, int, int]:
     """The colour of a link's first visual material, so collision shapes look like the arm."""
     for visual in link.findall("visual"):
         material = visual.find("material")
@@ -120,7 +133,7 @@ def _link_color(link: ET.Element, materials: dict[str, tuple[int, int, int]]) ->
             continue
         color = material.find("color")
         if color is not None:
-            rgba = _rgba(color.get("rgba", ""))
+            rgba = _rgba(path, color.get("rgba", ""), f"link {link.get('name', '')!r} visual material rgba")
             if rgba is not None:
                 return rgba
         if material.get("name") in materials:
@@ -142,23 +155,23 @@ def _collision_shapes(
         shape = geometry[0]
         pose = link_T_frame @ _origin(path, collision, field)
         if shape.tag == "box":
-            size = _floats(path, shape.get("size"), 3, f"{field} box size")
+            size = _floats(path, shape.get("size"), 3, f"{field} box size", bound=WORKSPACE_M)
             out.append(LinkShape("box", pose, size=size, color=color))  # type: ignore[arg-type]
         elif shape.tag == "sphere":
-            (radius,) = _floats(path, shape.get("radius"), 1, f"{field} sphere radius")
+            (radius,) = _floats(path, shape.get("radius"), 1, f"{field} sphere radius", bound=WORKSPACE_M)
             out.append(LinkShape("sphere", pose, radius=radius, color=color))
         elif shape.tag == "cylinder":
-            (radius,) = _floats(path, shape.get("radius"), 1, f"{field} cylinder radius")
-            (length,) = _floats(path, shape.get("length"), 1, f"{field} cylinder length")
+            (radius,) = _floats(path, shape.get("radius"), 1, f"{field} cylinder radius", bound=WORKSPACE_M)
+            (length,) = _floats(path, shape.get("length"), 1, f"{field} cylinder length", bound=WORKSPACE_M)
             out.append(LinkShape("cylinder", pose, radius=radius, length=length, color=color))
         elif shape.tag == "mesh":
             uri = shape.get("filename")
             if not uri:
                 raise FileFormatError(path, "a <mesh> needs a filename", field)
-            mesh_file = _resolve_mesh(path, uri)
+            mesh_file = _resolve_mesh(path, uri, field)
             if mesh_file is None:
                 raise FileFormatError(path, f"mesh file {uri!r} not found (relative paths are read from {path.parent})", field)
-            scale = _floats(path, shape.get("scale"), 3, f"{field} mesh scale", (1.0, 1.0, 1.0))
+            scale = _floats(path, shape.get("scale"), 3, f"{field} mesh scale", (1.0, 1.0, 1.0), 1e6, "")
             out.append(LinkShape("mesh", pose, mesh_path=str(mesh_file), scale=scale, color=color))  # type: ignore[arg-type]
         else:
             raise FileFormatError(path, f"unknown geometry <{shape.tag}> (box, sphere, cylinder or mesh)", field)
@@ -303,8 +316,8 @@ def load_urdf_robot(path: str | Path, tool_link: str | None = None) -> Robot:
             limit.set("upper", repr(CONTINUOUS_RANGE[1]))
         if limit is None or limit.get("lower") is None or limit.get("upper") is None:
             raise FileFormatError(path, "a revolute joint needs <limit lower=... upper=...>", field)
-        (lower,) = _floats(path, limit.get("lower"), 1, f"{field} limit lower")
-        (upper,) = _floats(path, limit.get("upper"), 1, f"{field} limit upper")
+        (lower,) = _floats(path, limit.get("lower"), 1, f"{field} limit lower", bound=MAX_ANGLE_RAD, unit="rad")
+        (upper,) = _floats(path, limit.get("upper"), 1, f"{field} limit upper", bound=MAX_ANGLE_RAD, unit="rad")
         if not lower < upper:
             raise FileFormatError(path, f"limit lower {lower} must be below upper {upper}", field)
         for attr in ("effort", "velocity"):  # required by pinocchio's parser, unused here
@@ -352,14 +365,14 @@ def load_urdf_robot(path: str | Path, tool_link: str | None = None) -> Robot:
     tool_id = body_frame(tool_link)
     link_frame_ids = (0,) + tuple(body_frame(j.child_link) for j in urdf_joints)
 
-    materials = _material_colors(root)
+    materials = _material_colors(path, root)
     shapes: dict[int, list[LinkShape]] = {}
     for link_name, link in links.items():
         frame_id = body_frame(link_name)
         frame = model.frames[frame_id]
         index = int(frame.parentJoint)  # joint i moves link i
         link_T_frame = frame.placement.homogeneous if frame_id else np.eye(4)
-        found = _collision_shapes(path, link, link_T_frame, _link_color(link, materials))
+        found = _collision_shapes(path, link, link_T_frame, _link_color(path, link, materials))
         if found:
             shapes.setdefault(index, []).extend(found)
 

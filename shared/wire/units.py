@@ -15,8 +15,13 @@ Header (little-endian, 20 bytes, ``HEADER``)::
     12      4     seq        unit number inside the communication, from 0 (u32)
     16      4     body_len   bytes of body that follow (u32)
 
-Body: UTF-8 JSON, a list of statements in their JSON form (``shared.language.statements``). An
-empty list is allowed (a unit that only ends a communication).
+Body: UTF-8 JSON, a list of at most ``MAX_UNIT_STATEMENTS`` statements in their JSON form
+(``shared.language.statements``). An empty list is allowed (a unit that only ends a
+communication). The body is decoded strictly (``shared.wire.strict_json``): NaN, Infinity, a
+number that overflows or a key given twice is ``BAD_JSON``; a statement the models refuse
+(beyond the bounds of ``shared.language.bounds``, a 100-character event name) is
+``INVALID_STATEMENT``. Either names the statement's index in the unit and the field, as a JSON
+pointer into the body (``/0/target: ...``).
 
 Decoding never raises: every malformed input becomes a ``Rejected`` message (``shared.wire.
 messages``) naming the reason and, for a bad statement, its index in the unit.
@@ -31,8 +36,9 @@ from dataclasses import dataclass
 from pydantic import ValidationError
 
 from shared.errors import InputError
+from shared.language.json_form import JSONFormFault, loads_located, validation_faults
 from shared.language.statements import Statement, program_to_json, statement_adapter
-from shared.wire.messages import Rejected, RejectReason, _first_error, _one_line
+from shared.wire.messages import MAX_TEXT, Rejected, RejectReason, _one_line
 
 HEADER = struct.Struct("<2sBBQII")
 HEADER_SIZE = HEADER.size
@@ -41,6 +47,8 @@ UNIT_VERSION = 1
 FLAG_END = 0x01
 MAX_BODY_BYTES = 1 << 20
 """Largest body accepted (1 MiB): about 8,000 statements; a longer program takes several units."""
+MAX_UNIT_STATEMENTS = 10_000
+"""Most statements in one unit (``split_into_units`` puts 100 in each)."""
 MAX_COMM_ID = (1 << 64) - 1
 MAX_SEQ = (1 << 32) - 1
 STATEMENT_KINDS = frozenset({"MOVE", "DRIVE", "DRAW", "ROTATE", "MOVES", "SPEED", "MODE", "EVENT", "TASK"})
@@ -123,11 +131,16 @@ def decode_body(header: UnitHeader, body: bytes) -> CommandUnit | Rejected:
     """Validate the JSON body of a unit whose header is already known."""
     ids = {"comm_id": header.comm_id, "seq": header.seq}
     try:
-        items = json.loads(body.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
-        return Rejected(**ids, reason=RejectReason.BAD_JSON, detail=f"body is not UTF-8 JSON: {_one_line(exc)}")
+        items = loads_located(body)
+    except JSONFormFault as exc:
+        index = _index_of(exc.pointer)
+        return Rejected(**ids, reason=RejectReason.BAD_JSON, detail=_clip(f"body is not strict JSON: {exc}"),
+                        statement_index=index, statement=None)
     if not isinstance(items, list):
         return Rejected(**ids, reason=RejectReason.BAD_BODY, detail="body is not a JSON list of statements")
+    if len(items) > MAX_UNIT_STATEMENTS:
+        return Rejected(**ids, reason=RejectReason.TOO_LARGE,
+                        detail=f"{len(items)} statements in one unit; limit {MAX_UNIT_STATEMENTS}")
     statements: list[Statement] = []
     for index, item in enumerate(items):
         text = _snippet(item)
@@ -141,11 +154,24 @@ def decode_body(header: UnitHeader, body: bytes) -> CommandUnit | Rejected:
                             statement_index=index, statement=text)
         try:
             statements.append(statement_adapter.validate_python(item))
-        except (ValidationError, ValueError, TypeError) as exc:
-            detail = _first_error(exc) if isinstance(exc, ValidationError) else _one_line(exc)
-            return Rejected(**ids, reason=RejectReason.INVALID_STATEMENT, detail=f"{kind}: {detail}",
+        except ValidationError as exc:
+            fault = validation_faults(exc, (index,))[0]
+            return Rejected(**ids, reason=RejectReason.INVALID_STATEMENT, detail=_clip(f"{kind} {fault}"),
+                            statement_index=index, statement=text)
+        except (ValueError, TypeError) as exc:
+            return Rejected(**ids, reason=RejectReason.INVALID_STATEMENT, detail=_clip(f"{kind}: {_one_line(exc)}"),
                             statement_index=index, statement=text)
     return CommandUnit(comm_id=header.comm_id, seq=header.seq, end=header.end, statements=tuple(statements))
+
+
+def _index_of(pointer: str) -> int | None:
+    """The statement index a pointer into the body starts with (``/3/target`` -> 3)."""
+    head = pointer.split("/")[1] if pointer.startswith("/") else ""
+    return int(head) if head.isdigit() and len(head) < 10 else None
+
+
+def _clip(text: str) -> str:
+    return text if len(text) <= MAX_TEXT else text[: MAX_TEXT - 3] + "..."
 
 
 def _snippet(item: object) -> str:
