@@ -6,6 +6,10 @@ them as the very commands a user would type keeps ``teleprog up`` honest. Each c
 with ``--json`` on a configured port or one chosen free; its first stdout line says where it
 listens. Children get SIGTERM when the console stops (and, on Linux, when the console dies:
 ``PR_SET_PDEATHSIG``), so nothing is left running.
+
+While the console runs, ``ChildWatch`` polls the children (which also reaps them: no zombie),
+logs an exit once, starts the child again with the same arguments (so on the same port) unless
+told not to, and says how each one is for the console's link view.
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ class Child:
 
     name: str
     proc: subprocess.Popen
+    args: list[str] = field(default_factory=list)
     url: str = ""
     ready: dict = field(default_factory=dict)
     _lines: queue.Queue = field(default_factory=queue.Queue, repr=False)
@@ -86,7 +91,7 @@ def spawn_child(name: str, args: list[str]) -> Child:
         cmd, stdout=subprocess.PIPE, stderr=None, text=True, cwd=PROJECT_DIR,
         env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent if os.name == "posix" else None,
     )
-    child = Child(name, proc)
+    child = Child(name, proc, list(args))
 
     def drain() -> None:
         assert proc.stdout is not None
@@ -125,3 +130,90 @@ def spawn_robot_and_link(*, cell: Path, robot_port: int, link_port: int, delay_m
         "link", ["link", "--port", str(link_port), "--robot", f"ws://127.0.0.1:{robot_port}", "--delay-ms", repr(float(delay_ms))]
     )
     return robot, link, f"ws://127.0.0.1:{link_port}"
+
+
+class ChildWatch:
+    """Watches started children on a thread: an exit is logged once, shown in ``status()``
+    (``exited 1, restarting``) and, with ``restart``, the child is started again with the same
+    arguments (its port is in them). ``children`` always lists the current processes."""
+
+    def __init__(self, children: list[Child], *, restart: bool, start_timeout: float, poll_s: float = 0.2) -> None:
+        self.children = list(children)
+        self.restart = restart
+        self.start_timeout = start_timeout
+        self.poll_s = poll_s
+        self._status = {c.name: "running" for c in children}
+        self._restarts = {c.name: 0 for c in children}
+        self._given_up: set[int] = set()  # ids of the Popen objects of exited children left exited (no restart)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="child-watch", daemon=True)
+
+    def start(self) -> "ChildWatch":
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop watching (before the children are stopped on purpose); waits for a restart in
+        progress to finish so that its process is in ``children`` to be stopped."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=self.start_timeout + 5)
+
+    def status(self) -> dict[str, str]:
+        with self._lock:
+            return dict(self._status)
+
+    def _set(self, name: str, text: str) -> None:
+        with self._lock:
+            self._status[name] = text
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.poll_s):
+            for i, child in enumerate(list(self.children)):
+                if id(child.proc) in self._given_up:
+                    continue
+                code = child.proc.poll()  # reaps an exited child
+                if code is None or self._stop.is_set():
+                    continue
+                self.children[i] = self._exited(child, code)
+
+    def _exited(self, child: Child, code: int) -> Child:
+        if not self.restart:
+            log.warning("the %s exited with code %d; not restarting it (--no-restart)", child.name, code)
+            self._set(child.name, f"exited {code}, not restarted")
+            self._given_up.add(id(child.proc))
+            return child
+        log.warning("the %s exited with code %d; starting it again", child.name, code)
+        self._set(child.name, f"exited {code}, restarting")
+        try:
+            new = start_child(child.name, child.args, self.start_timeout)
+        except InputError as exc:
+            log.warning("restarting the %s failed: %s; trying again", child.name, exc)
+            self._set(child.name, f"exited {code}, restart failed: {exc}")
+            self._stop.wait(2.0)
+            return Child(child.name, _Exited(code), child.args)
+        with self._lock:
+            self._restarts[child.name] += 1
+            self._status[child.name] = f"running (restarted {self._restarts[child.name]}x; last exit {code})"
+        log.info("the %s runs again at %s", child.name, new.url)
+        return new
+
+
+class _Exited:
+    """Stands in for a child whose restart failed: reads as exited, so the watch tries again."""
+
+    def __init__(self, code: int) -> None:
+        self.returncode = code
+
+    def poll(self) -> int:
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        return self.returncode
+
+    def terminate(self) -> None:
+        pass
+
+    def kill(self) -> None:
+        pass
