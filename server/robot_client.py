@@ -333,6 +333,7 @@ class RobotClient:
                 if restart is not None:
                     self._end_session(restart)
                 self.halted = msg.halted
+                self.command_watch.interval = msg.heartbeat_s
                 await self._send_all(self.sender.on_welcome(msg))
                 self.connected.set()
             return

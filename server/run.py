@@ -4,8 +4,9 @@
 robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
 as child processes (``server.stack``), connects the console to the link, watches them (a child
 that exits is logged once, shown in ``/api/link`` and started again on its port, unless
-``--no-restart``), and stops the children when the console stops (Ctrl-C, SIGTERM). ``--sedimentation`` serves the particle-sedimentation
-view (``server.sedimentation_app``) instead, with no robot and no link.
+``--no-restart``), and stops the children when the console stops (Ctrl-C, SIGTERM).
+``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation_app``)
+instead, with no robot and no link.
 """
 
 from __future__ import annotations
@@ -130,8 +131,7 @@ def run_console(args: argparse.Namespace) -> int:
         from server.stack import stop_child
 
         if watcher:
-            watcher[0].stop()  # no restart while the children are stopped on purpose
-            children = watcher[0].children
+            children = watcher[0].stop()  # no restart while the children are stopped on purpose
         for child in reversed(children):
             stop_child(child)
 

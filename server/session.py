@@ -1229,9 +1229,12 @@ class Session:
         """The robot began a new session (``shared.wire.session.SessionRestart``): every sent
         statement without a final status is unknown now, and robot numbers start again."""
         with self._lock:
+            # the numbered ones belong to the old session; one still sending learns its fate from
+            # its own submission (RobotRestarted in _send, or numbers from the new robot)
+            numbered = list(self._by_number.values())
             self._by_number.clear()
             self._early_reports.clear()
-        self._mark_unknown(list(self._sent), restart.describe())
+        self._mark_unknown(numbered, restart.describe())
         self._emit([Notice(level="error", message=restart.describe()), LinkChanged(link=self.link_view())])
 
     def _mark_unknown(self, items: list[_Sent], reason: str) -> None:

@@ -153,12 +153,14 @@ class ChildWatch:
         self._thread.start()
         return self
 
-    def stop(self) -> None:
-        """Stop watching (before the children are stopped on purpose); waits for a restart in
-        progress to finish so that its process is in ``children`` to be stopped."""
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=self.start_timeout + 5)
+    def stop(self) -> list[Child]:
+        """Stop watching (before the children are stopped on purpose); returns the current
+        children, a restarting one included, for the caller to stop."""
+        with self._lock:
+            self._stop.set()
+            children = list(self.children)
+        self._thread.join(timeout=1.0)
+        return children
 
     def status(self) -> dict[str, str]:
         with self._lock:
@@ -174,46 +176,29 @@ class ChildWatch:
                 if id(child.proc) in self._given_up:
                     continue
                 code = child.proc.poll()  # reaps an exited child
-                if code is None or self._stop.is_set():
-                    continue
-                self.children[i] = self._exited(child, code)
+                if code is not None and not self._stop.is_set():
+                    self._exited(i, child, code)
 
-    def _exited(self, child: Child, code: int) -> Child:
+    def _exited(self, i: int, child: Child, code: int) -> None:
         if not self.restart:
             log.warning("the %s exited with code %d; not restarting it (--no-restart)", child.name, code)
             self._set(child.name, f"exited {code}, not restarted")
             self._given_up.add(id(child.proc))
-            return child
+            return
         log.warning("the %s exited with code %d; starting it again", child.name, code)
-        self._set(child.name, f"exited {code}, restarting")
+        with self._lock:
+            if self._stop.is_set():
+                return
+            self._status[child.name] = f"exited {code}, restarting"
+            new = self.children[i] = spawn_child(child.name, child.args)
         try:
-            new = start_child(child.name, child.args, self.start_timeout)
-        except InputError as exc:
-            log.warning("restarting the %s failed: %s; trying again", child.name, exc)
+            new.wait_ready(self.start_timeout)
+        except InputError as exc:  # it exited or never listened: the next poll tries again
+            log.warning("restarting the %s failed: %s", child.name, exc)
             self._set(child.name, f"exited {code}, restart failed: {exc}")
             self._stop.wait(2.0)
-            return Child(child.name, _Exited(code), child.args)
+            return
         with self._lock:
             self._restarts[child.name] += 1
             self._status[child.name] = f"running (restarted {self._restarts[child.name]}x; last exit {code})"
         log.info("the %s runs again at %s", child.name, new.url)
-        return new
-
-
-class _Exited:
-    """Stands in for a child whose restart failed: reads as exited, so the watch tries again."""
-
-    def __init__(self, code: int) -> None:
-        self.returncode = code
-
-    def poll(self) -> int:
-        return self.returncode
-
-    def wait(self, timeout: float | None = None) -> int:
-        return self.returncode
-
-    def terminate(self) -> None:
-        pass
-
-    def kill(self) -> None:
-        pass
