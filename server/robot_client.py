@@ -145,6 +145,8 @@ class RobotClient:
         self.refused: str | None = None
         self.buffer_full: str | None = None
         self.restarts: list[SessionRestart] = []
+        self.heartbeats_heard = 0
+        """Heartbeats the robot sent (a robot that sends none is judged by its other messages)."""
         self._ws: ClientConnection | None = None
         self._lock = asyncio.Lock()  # one writer: welcome replays, heartbeats and new units never interleave
         self._answers: dict[int, asyncio.Future[Accepted | Rejected]] = {}
@@ -338,6 +340,7 @@ class RobotClient:
                 self.connected.set()
             return
         if isinstance(msg, Heartbeat):
+            self.heartbeats_heard += 1
             return
         if isinstance(msg, Halted):
             self.halted = f"{msg.cause.value}: {msg.detail}"
