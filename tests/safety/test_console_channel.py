@@ -14,15 +14,14 @@ from __future__ import annotations
 
 import asyncio
 
+import numpy as np
 import pytest
 
 from server.robot_client import RobotClient, RobotRestarted
-from shared.language.statements import Event, Move, SetSpeed, Speed, SpeedUnit
 from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.statements import Event, Move, SetSpeed, Speed, SpeedUnit
 from shared.wire.messages import StatementState
 from support import ServerProcess
-
-import numpy as np
 
 CELL = load_cell(DEFAULT_CELL)
 

@@ -109,12 +109,10 @@ def test_killed_robot_child_is_restarted_and_old_statements_read_unknown(tmp_pat
                  "a statement running")
         robot_pid = _child_pid(console, "robot")
         os.kill(robot_pid, signal.SIGKILL)
-        t_kill = time.monotonic()
         restarted = wait_for(
             lambda: (v := _link(console))["children"].get("telerobot", "").startswith("running (restarted") and v, 60, 0.1,
             "teleprog up saying it restarted the telerobot",
         )
-        print(f"restart seen after {time.monotonic() - t_kill:.1f} s")
         assert "last exit -9" in restarted["children"]["telerobot"]
         assert not _zombie(robot_pid) and not Path(f"/proc/{robot_pid}").exists()  # reaped
         assert _child_pid(console, "robot") != robot_pid
@@ -122,7 +120,6 @@ def test_killed_robot_child_is_restarted_and_old_statements_read_unknown(tmp_pat
         assert health["status"] == "ok"
         view = wait_for(lambda: (v := _link(console))["robot_restarts"] == 1 and v["status"] == "live" and v, 30, 0.1,
                         "the console on the new robot session")
-        print(f"new session seen after {time.monotonic() - t_kill:.1f} s")
         assert view["robot_session"] != session_before
         sent = _api(console, "GET", "/api/sent")
         assert sent["pending"] == 0
