@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager, suppress
 from dataclasses import dataclass
 
@@ -45,8 +45,11 @@ def _build_page(viser_server, session: Session) -> None:
     build_console(viser_server, session)
 
 
-def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = True) -> FastAPI:
-    """The console app; ``build_page=False`` serves the API without the 3D page's panels."""
+def create_app(
+    settings: ConsoleSettings | None = None, *, build_page: bool = True, children: Callable[[], dict[str, str]] | None = None
+) -> FastAPI:
+    """The console app; ``build_page=False`` serves the API without the 3D page's panels;
+    ``children()``: how the processes ``teleprog up`` watches are (shown in the link view)."""
     settings = settings or ConsoleSettings()
     cell = load_cell(settings.cell)  # fail before serving anything if the cell is broken
     holder: dict[str, ConsoleState] = {}
@@ -54,13 +57,15 @@ def create_app(settings: ConsoleSettings | None = None, *, build_page: bool = Tr
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         session = Session(cell)
+        if children is not None:
+            session.watch_children(children)
         loop = asyncio.get_running_loop()
         tasks: list[asyncio.Task] = []
         client = None
         if settings.robot_url and not settings.no_robot:
             from server.robot_client import RobotClient
 
-            client = RobotClient(settings.robot_url)
+            client = RobotClient(settings.robot_url, silence_limit_s=settings.silence_limit_s)
             session.attach_robot(client, loop)
 
             async def connect() -> None:

@@ -75,10 +75,13 @@ class SentStatus(str, Enum):
     FAILED = "failed"
     SKIPPED = "skipped"
     ABORTED = "aborted"
-    REJECTED = "rejected"  # the robot refused the whole communication
+    REJECTED = "rejected"  # the robot refused the whole communication (e.g. its buffer was full)
+    UNKNOWN = "unknown"  # the robot restarted before its final status: it may or may not have run
 
 
-FINAL_SENT = frozenset({SentStatus.DONE, SentStatus.FAILED, SentStatus.SKIPPED, SentStatus.ABORTED, SentStatus.REJECTED})
+FINAL_SENT = frozenset(
+    {SentStatus.DONE, SentStatus.FAILED, SentStatus.SKIPPED, SentStatus.ABORTED, SentStatus.REJECTED, SentStatus.UNKNOWN}
+)
 
 
 # ----------------------------------------------------------------------------------- views
@@ -188,8 +191,29 @@ class LinkView(_View):
     telemetry_received_ago_s: float | None = Field(None, description="since the last frame arrived here")
     telemetry_age_s: float | None = Field(None, description="age of the state the last frame shows (adds the delay)")
     reconnects: int = 0
-    robot_state: str | None = Field(None, description="idle, running, stopped, fault, disconnected")
+    robot_state: str | None = Field(
+        None, description="idle, running, stopped, fault, disconnected; None when telemetry is stale (never an old state)"
+    )
     recovery_pending: list[str] = Field(default_factory=list, description="recovery commands not acknowledged yet")
+    status: str = Field(
+        "unconfigured",
+        description="the command channel: unconfigured, down (no socket), connecting (no welcome yet), live, "
+        "silent (nothing heard past the silence limit)",
+    )
+    heard_ago_s: float | None = Field(None, description="since anything last arrived on the command channel")
+    silence_limit_s: float | None = Field(None, description="silence beyond the expected arrival that counts as silent")
+    telemetry: str = Field("none", description="none (no frame yet), live or stale (no frame past the silence limit)")
+    halted: str | None = Field(None, description="why the robot stopped by itself, until a resume is acknowledged")
+    errors: int = Field(0, description="errors caught while handling the robot's messages (the channels carried on)")
+    last_error: str | None = None
+    refused: str | None = Field(None, description="the robot's last refusal of a message or recovery command")
+    buffer_full: str | None = Field(None, description="the robot's last BUFFER_FULL answer, until a later one is accepted")
+    robot_session: str | None = Field(None, description="the robot's session id (changes when it restarts)")
+    robot_restarts: int = Field(0, description="how often a new robot session began under this console")
+    children: dict[str, str] = Field(
+        default_factory=dict, description="processes teleprog up started and watches: name -> running / exited N, restarting"
+    )
+    problems: list[str] = Field(default_factory=list, description="what is wrong with the link now, one line each")
 
 
 class RemoteArmView(_View):

@@ -2,9 +2,11 @@
 
 ``teleprog up`` starts the whole product: unless told otherwise (``--robot-url``: use a running
 robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
-as child processes (``server.stack``), connects the console to the link, and stops the children
-when the console stops (Ctrl-C, SIGTERM). ``--sedimentation`` serves the particle-sedimentation
-view (``server.sedimentation_app``) instead, with no robot and no link.
+as child processes (``server.stack``), connects the console to the link, watches them (a child
+that exits is logged once, shown in ``/api/link`` and started again on its port, unless
+``--no-restart``), and stops the children when the console stops (Ctrl-C, SIGTERM).
+``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation_app``)
+instead, with no robot and no link.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
     return ConsoleSettings().with_overrides(
         port=get("port"), host=get("host"), cell=get("cell"), delay_ms=get("delay_ms"), robot_url=get("robot_url"),
         no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
-        sedimentation=True if get("sedimentation") else None,
+        sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
     )
 
 
@@ -77,6 +79,11 @@ def run_console(args: argparse.Namespace) -> int:
 
     load_cell(settings.cell)  # a broken cell fails here, before any child starts
     children = []
+    watcher: list = []  # the ChildWatch, once both children listen
+
+    def children_status() -> dict[str, str]:
+        return watcher[0].status() if watcher else {c.name: "starting" for c in children}
+
     try:
         watch = None
         if not settings.no_robot and not settings.robot_url:
@@ -92,7 +99,7 @@ def run_console(args: argparse.Namespace) -> int:
             print(f"teleprog up: using the robot at {settings.robot_url}", flush=True)
         else:
             print("teleprog up: console only (no robot)", flush=True)
-        app = create_app(settings)
+        app = create_app(settings, children=children_status if watch is not None else None)
         config = uvicorn.Config(
             app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
         )
@@ -111,6 +118,11 @@ def run_console(args: argparse.Namespace) -> int:
                     return
                 robot, link = watch
                 print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
+                from server.stack import ChildWatch
+
+                watcher.append(ChildWatch(
+                    list(watch), restart=settings.restart_children, start_timeout=settings.child_start_timeout_s
+                ).start())
 
             threading.Thread(target=wait_children, name="children", daemon=True).start()
         server.run()
@@ -118,6 +130,8 @@ def run_console(args: argparse.Namespace) -> int:
     finally:
         from server.stack import stop_child
 
+        if watcher:
+            children = watcher[0].stop()  # no restart while the children are stopped on purpose
         for child in reversed(children):
             stop_child(child)
 

@@ -85,6 +85,7 @@ from server.console_models import (
     TerrainChanged,
     TerrainView,
 )
+from server.robot_client import RobotRestarted
 from server.terrain_layer import TerrainLayer
 from shared.cells.cell import Cell
 from shared.collision import SceneModel, zone
@@ -169,10 +170,19 @@ class _Sent:
     def view(self) -> SentView:
         run = self.finished_at - self.started_at if self.finished_at is not None and self.started_at is not None else None
         return SentView(
-            id=self.id, number=self.number, text=format_statement(self.statement), statement=self.statement,
+            id=self.id, number=self.number, text=_statement_text(self.statement), statement=self.statement,
             status=self.status, reason=self.reason, submitted_at=self.submitted_at, answered_at=self.answered_at,
             started_at=self.started_at, finished_at=self.finished_at, run_s=run,
         )
+
+
+def _statement_text(statement: Statement) -> str:
+    """The statement as text; one that cannot be written (a value no statement may hold) is
+    named by its kind and why, so the sent list can always be shown."""
+    try:
+        return format_statement(statement)
+    except Exception as exc:  # noqa: BLE001 - a list of what was sent must never fail to render
+        return f"{getattr(statement, 'kind', type(statement).__name__)} (cannot be written: {exc})"
 
 
 @dataclass
@@ -191,6 +201,24 @@ class _Preview:
 
 def _m(a: np.ndarray) -> list[list[float]]:
     return np.asarray(a, dtype=float).tolist()
+
+
+def _link_problems(h, children: dict[str, str]) -> list[str]:
+    """What is wrong with the link, one line each, for the status bar (``h``: ``ChannelHealth``)."""
+    out = [f"{name} {what}" for name, what in children.items() if not what.startswith("running")]
+    if h.command == "down":
+        out.append("link down")
+    elif h.command == "silent":
+        out.append(f"robot silent for {h.heard_ago_s:.1f} s")
+    if h.telemetry == "stale":
+        out.append(f"telemetry stale ({h.telemetry_ago_s:.1f} s)")
+    if h.halted:
+        out.append(f"robot halted by itself: {h.halted}")
+    if h.buffer_full:
+        out.append(f"robot buffer full: {h.buffer_full}")
+    if h.errors:
+        out.append(f"{h.errors} error(s) handling the robot's messages; last: {h.last_error}")
+    return out
 
 
 class Session:
@@ -268,6 +296,7 @@ class Session:
         self._predicted = PredictedPathView()
         self._divergence = DivergenceView(threshold_joint=self.settings.divergence_joint, threshold_tool=self.settings.divergence_tool)
         self._last_link: LinkView | None = None
+        self._children: Callable[[], dict[str, str]] | None = None
         self._collision = self._compute_collision(self._state)
         self._zone = self._collision.zone
 
@@ -372,15 +401,41 @@ class Session:
             delay = rtt / 2 if rtt is not None else None
             ago = now - self._telemetry_at if self._telemetry_at is not None else None
             frame = self._telemetry
-            return LinkView(
-                configured=self._url is not None, url=self._url,
-                connected=bool(client is not None and client.connected.is_set()),
-                delay_s=delay, round_trip_s=rtt, telemetry_received_ago_s=ago,
-                telemetry_age_s=None if ago is None else ago + (delay or 0.0),
-                reconnects=client.reconnects if client is not None else 0,
-                robot_state=frame.state.name.lower() if frame is not None else None,
-                recovery_pending=list(self._recovery_pending.values()),
-            )
+            recovery = list(self._recovery_pending.values())
+        children = self._children_status()
+        if client is None:
+            return LinkView(configured=self._url is not None, url=self._url, children=children,
+                            problems=[f"{name} {what}" for name, what in children.items() if not what.startswith("running")])
+        h = client.health()
+        fresh = frame is not None and h.telemetry == "live"
+        problems = _link_problems(h, children)
+        return LinkView(
+            configured=True, url=self._url, connected=h.connected,
+            delay_s=delay, round_trip_s=rtt, telemetry_received_ago_s=ago,
+            telemetry_age_s=None if ago is None else ago + (delay or 0.0),
+            reconnects=client.reconnects,
+            robot_state=frame.state.name.lower() if fresh else None,
+            recovery_pending=recovery, status=h.command, heard_ago_s=h.heard_ago_s, silence_limit_s=h.silence_limit_s,
+            telemetry=h.telemetry, halted=h.halted, errors=h.errors, last_error=h.last_error, refused=h.refused,
+            buffer_full=h.buffer_full, robot_session=h.session_id, robot_restarts=h.restarts, children=children,
+            problems=problems,
+        )
+
+    def watch_children(self, status: Callable[[], dict[str, str]]) -> None:
+        """``status()`` names the processes ``teleprog up`` started and how each is (shown in
+        the link view)."""
+        with self._lock:
+            self._children = status
+
+    def _children_status(self) -> dict[str, str]:
+        fn = self._children
+        if fn is None:
+            return {}
+        try:
+            return dict(fn())
+        except Exception:  # noqa: BLE001 - the link view must always answer
+            log.exception("reading the children's status failed")
+            return {"children": "status unknown"}
 
     def remote_view(self) -> RemoteArmView | None:
         """The remote arm from the newest telemetry frame, or ``None`` before the first one."""
@@ -1011,6 +1066,7 @@ class Session:
             self._client, self._loop, self._url = client, loop, client.url
         client.on_report(self.on_report)
         client.on_telemetry(self.on_telemetry)
+        client.on_restart(self.on_robot_restart)
 
     def note_round_trip(self, seconds: float) -> None:
         """Record a measured round trip (connection handshake, submit answer, recovery ack)."""
@@ -1120,6 +1176,9 @@ class Session:
         was_up, reconnects = robot.connected.is_set(), robot.reconnects
         try:
             numbers = await robot.submit(statements)
+        except RobotRestarted as exc:  # on_robot_restart marked them unknown already
+            self._mark_unknown([s for s in self._sent if s.comm == comm], str(exc))
+            return
         except TeleprogError as exc:  # CommunicationRejected
             with self._lock:
                 for s in self._sent:
@@ -1160,8 +1219,37 @@ class Session:
             final = s.status in FINAL_SENT
         self._emit([SentChanged(sent=self.sent_view())])
         if final:
+            for follow_up in (self._refresh_predicted, self._check_divergence):
+                try:
+                    follow_up()
+                except Exception:  # noqa: BLE001 - the report is taken; a derived view must not undo that
+                    log.exception("after the report of statement %d: %s failed", report.number, follow_up.__name__)
+
+    def on_robot_restart(self, restart) -> None:
+        """The robot began a new session (``shared.wire.session.SessionRestart``): every sent
+        statement without a final status is unknown now, and robot numbers start again."""
+        with self._lock:
+            # the numbered ones belong to the old session; one still sending learns its fate from
+            # its own submission (RobotRestarted in _send, or numbers from the new robot)
+            numbered = list(self._by_number.values())
+            self._by_number.clear()
+            self._early_reports.clear()
+        self._mark_unknown(numbered, restart.describe())
+        self._emit([Notice(level="error", message=restart.describe()), LinkChanged(link=self.link_view())])
+
+    def _mark_unknown(self, items: list[_Sent], reason: str) -> None:
+        with self._lock:
+            now = time.time()
+            changed = False
+            for s in items:
+                if s.status not in FINAL_SENT:
+                    s.status, s.reason, s.finished_at = SentStatus.UNKNOWN, reason, now
+                    changed = True
+            if changed:
+                self._start_unknown = True  # the robot's state is the truth now
+        if changed:
+            self._emit([SentChanged(sent=self.sent_view())])
             self._refresh_predicted()
-            self._check_divergence()
 
     def _apply_report(self, s: _Sent, report) -> None:
         status = SentStatus(report.state.value)
@@ -1449,8 +1537,11 @@ class Session:
         the app's loop for the console's lifetime."""
         while not self._closing:
             # every poll: the telemetry age grows even when nothing else changes
-            self._last_link = self.link_view()
-            self._emit([LinkChanged(link=self._last_link)])
+            try:
+                self._last_link = self.link_view()
+                self._emit([LinkChanged(link=self._last_link)])
+            except Exception:  # noqa: BLE001 - the monitor must outlive any one bad view
+                log.exception("publishing the link view failed")
             await asyncio.sleep(self.settings.link_poll_s)
 
     def close(self) -> None:

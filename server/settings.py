@@ -9,6 +9,7 @@ from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from shared.cells.loader import DEFAULT_CELL
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S
 
 
 class ConsoleSettings(BaseSettings):
@@ -30,6 +31,13 @@ class ConsoleSettings(BaseSettings):
     robot_port: int = Field(0, ge=0, le=65535, description="port of the started telerobot (0: any free)")
     link_port: int = Field(0, ge=0, le=65535, description="port of the started link (0: any free)")
     child_start_timeout_s: float = Field(60.0, gt=0, description="how long to wait for robot and link to listen")
+    restart_children: bool = Field(
+        True, description="teleprog up starts a telerobot or link child again, on its port, when it exits (--no-restart: off)"
+    )
+    silence_limit_s: float = Field(
+        DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0,
+        description="silence beyond the expected arrival after which the console shows the robot silent, telemetry stale (s)",
+    )
     # the sedimentation view (``teleprog up --sedimentation``, thesis chapter 5)
     sedimentation: bool = Field(False, description="serve the particle-sedimentation view instead of the robot console")
     sedimentation_method: str = Field("usscd", description="broadphase method the sedimentation view starts with")

@@ -6,6 +6,10 @@ them as the very commands a user would type keeps ``teleprog up`` honest. Each c
 with ``--json`` on a configured port or one chosen free; its first stdout line says where it
 listens. Children get SIGTERM when the console stops (and, on Linux, when the console dies:
 ``PR_SET_PDEATHSIG``), so nothing is left running.
+
+While the console runs, ``ChildWatch`` polls the children (which also reaps them: no zombie),
+logs an exit once, starts the child again with the same arguments (so on the same port) unless
+told not to, and says how each one is for the console's link view.
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ class Child:
 
     name: str
     proc: subprocess.Popen
+    args: list[str] = field(default_factory=list)
     url: str = ""
     ready: dict = field(default_factory=dict)
     _lines: queue.Queue = field(default_factory=queue.Queue, repr=False)
@@ -86,7 +91,7 @@ def spawn_child(name: str, args: list[str]) -> Child:
         cmd, stdout=subprocess.PIPE, stderr=None, text=True, cwd=PROJECT_DIR,
         env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent if os.name == "posix" else None,
     )
-    child = Child(name, proc)
+    child = Child(name, proc, list(args))
 
     def drain() -> None:
         assert proc.stdout is not None
@@ -125,3 +130,75 @@ def spawn_robot_and_link(*, cell: Path, robot_port: int, link_port: int, delay_m
         "link", ["link", "--port", str(link_port), "--robot", f"ws://127.0.0.1:{robot_port}", "--delay-ms", repr(float(delay_ms))]
     )
     return robot, link, f"ws://127.0.0.1:{link_port}"
+
+
+class ChildWatch:
+    """Watches started children on a thread: an exit is logged once, shown in ``status()``
+    (``exited 1, restarting``) and, with ``restart``, the child is started again with the same
+    arguments (its port is in them). ``children`` always lists the current processes."""
+
+    def __init__(self, children: list[Child], *, restart: bool, start_timeout: float, poll_s: float = 0.2) -> None:
+        self.children = list(children)
+        self.restart = restart
+        self.start_timeout = start_timeout
+        self.poll_s = poll_s
+        self._status = {c.name: "running" for c in children}
+        self._restarts = {c.name: 0 for c in children}
+        self._given_up: set[int] = set()  # ids of the Popen objects of exited children left exited (no restart)
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="child-watch", daemon=True)
+
+    def start(self) -> "ChildWatch":
+        self._thread.start()
+        return self
+
+    def stop(self) -> list[Child]:
+        """Stop watching (before the children are stopped on purpose); returns the current
+        children, a restarting one included, for the caller to stop."""
+        with self._lock:
+            self._stop.set()
+            children = list(self.children)
+        self._thread.join(timeout=1.0)
+        return children
+
+    def status(self) -> dict[str, str]:
+        with self._lock:
+            return dict(self._status)
+
+    def _set(self, name: str, text: str) -> None:
+        with self._lock:
+            self._status[name] = text
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.poll_s):
+            for i, child in enumerate(list(self.children)):
+                if id(child.proc) in self._given_up:
+                    continue
+                code = child.proc.poll()  # reaps an exited child
+                if code is not None and not self._stop.is_set():
+                    self._exited(i, child, code)
+
+    def _exited(self, i: int, child: Child, code: int) -> None:
+        if not self.restart:
+            log.warning("the %s exited with code %d; not restarting it (--no-restart)", child.name, code)
+            self._set(child.name, f"exited {code}, not restarted")
+            self._given_up.add(id(child.proc))
+            return
+        log.warning("the %s exited with code %d; starting it again", child.name, code)
+        with self._lock:
+            if self._stop.is_set():
+                return
+            self._status[child.name] = f"exited {code}, restarting"
+            new = self.children[i] = spawn_child(child.name, child.args)
+        try:
+            new.wait_ready(self.start_timeout)
+        except InputError as exc:  # it exited or never listened: the next poll tries again
+            log.warning("restarting the %s failed: %s", child.name, exc)
+            self._set(child.name, f"exited {code}, restart failed: {exc}")
+            self._stop.wait(2.0)
+            return
+        with self._lock:
+            self._restarts[child.name] += 1
+            self._status[child.name] = f"running (restarted {self._restarts[child.name]}x; last exit {code})"
+        log.info("the %s runs again at %s", child.name, new.url)

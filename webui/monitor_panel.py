@@ -22,6 +22,7 @@ STATUS_MARK = {
     SentStatus.SKIPPED: "skipped",
     SentStatus.ABORTED: "aborted",
     SentStatus.REJECTED: "**REJECTED**",
+    SentStatus.UNKNOWN: "**UNKNOWN**",
 }
 
 SHOWN = 14  # the newest sent statements listed; older ones stay in the API

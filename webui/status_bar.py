@@ -48,6 +48,7 @@ def link_text(link: LinkView) -> str:
         parts.append(f"robot **{link.robot_state}**")
     if link.recovery_pending:
         parts.append("waiting for " + ", ".join(link.recovery_pending))
+    parts += [f"**{problem}**" for problem in link.problems]
     return " · ".join(parts)
 
 

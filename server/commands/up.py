@@ -24,6 +24,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     up.add_argument("--delay-ms", type=float, default=None, help="link delay each way in ms (default 3000)")
     up.add_argument("--robot-port", type=int, default=None, help="port of the started telerobot (default: any free)")
     up.add_argument("--link-port", type=int, default=None, help="port of the started link (default: any free)")
+    up.add_argument(
+        "--no-restart", action="store_true", help="leave a telerobot or link child that exits stopped (default: start it again)"
+    )
     group = up.add_mutually_exclusive_group()
     group.add_argument("--no-robot", action="store_true", help="console only: start no robot and no link")
     group.add_argument("--robot-url", default=None, help="use a running robot or link at this ws:// URL")

@@ -208,19 +208,29 @@ class CommandReceiver:
 
 
 class CommandSender:
-    """The console's end of the command channel: numbering, keeping and re-sending units."""
+    """The console's end of the command channel: numbering, keeping and re-sending units.
+
+    A welcome from another robot session (the robot restarted) ends the old session here: what
+    it left unanswered is returned by ``begin_session`` as a ``SessionRestart`` and dropped, never
+    sent to the new robot (it may have run on the old one), and numbering starts again at 1.
+    """
 
     def __init__(self, client_id: str, per_unit: int = 100) -> None:
         self.client_id = client_id
         self.per_unit = per_unit
+        self.session_id: str | None = None
+        self._fresh()
+
+    def _fresh(self) -> None:
+        """Counters and books of a new robot session."""
         self.next_comm = 1
         self.next_command = 1
         self.outbox: OrderedDict[int, list[bytes]] = OrderedDict()  # unanswered communications
         self.answers: dict[int, Answer] = {}
         self.statuses: dict[int, list[StatementState]] = {}
         self.last_report_seq = 0
-        self.session_id: str | None = None
         self._unacked: OrderedDict[int, Recovery] = OrderedDict()
+        self._refusals: set[str] = set()
 
     @property
     def last_answered_comm(self) -> int:
@@ -242,19 +252,38 @@ class CommandSender:
         self._unacked[cmd.command_id] = cmd
         return cmd
 
+    def unacked(self, command_id: int) -> Recovery | None:
+        """The recovery command of that id still waiting for its acknowledgement, if any."""
+        return self._unacked.get(command_id)
+
     def hello(self) -> Hello:
         return Hello(
             client_id=self.client_id,
+            session_id=self.session_id,
             last_answered_comm=self.last_answered_comm,
             last_report_seq=self.last_report_seq,
             last_acked_command=min(self._unacked) - 1 if self._unacked else self.next_command - 1,
         )
 
+    def begin_session(self, welcome: Welcome) -> SessionRestart | None:
+        """Take the welcome's session; on a new one (the robot restarted), drop the old
+        session's books and return what it left unknown (None when the session is the same)."""
+        old = self.session_id
+        self.session_id = welcome.session_id
+        if old is None or old == welcome.session_id:
+            return None
+        numbered = set(self.statuses) | {n for a in self.answers.values() if isinstance(a, Accepted) for n in a.numbers}
+        restart = SessionRestart(
+            old_session=old, new_session=welcome.session_id, comms=tuple(self.outbox), commands=tuple(self._unacked),
+            numbers=tuple(sorted(n for n in numbered if self.final_state(n) is None)),
+        )
+        log.warning("%s", restart.describe())
+        self._fresh()
+        return restart
+
     def on_welcome(self, welcome: Welcome) -> list[bytes | Recovery]:
         """What to send again after ``welcome``: units the robot lacks, then unapplied commands."""
-        if self.session_id is not None and welcome.session_id != self.session_id:
-            log.warning("robot session changed (%s -> %s): unanswered work is unknown", self.session_id, welcome.session_id)
-        self.session_id = welcome.session_id
+        self.begin_session(welcome)
         out: list[bytes | Recovery] = []
         for comm_id, units in self.outbox.items():
             if comm_id <= welcome.last_answered_comm:
@@ -267,7 +296,10 @@ class CommandSender:
     def on_message(self, msg: BaseModel) -> None:
         """Record an answer, a status report or an acknowledgement (repeats are ignored)."""
         if isinstance(msg, Rejected) and not msg.final:
-            log.warning("robot refused a unit or message: %s (%s)", msg.reason.value, msg.detail)
+            key = f"{msg.reason.value}: {msg.detail}"
+            if key not in self._refusals:  # the same refusal again is not news
+                self._refusals.add(key)
+                log.warning("robot refused a unit or message: %s (%s)", msg.reason.value, msg.detail)
         elif isinstance(msg, (Accepted, Rejected)) and msg.comm_id is not None:
             if msg.comm_id not in self.answers:
                 self.answers[msg.comm_id] = msg
@@ -288,3 +320,38 @@ class CommandSender:
     def idle(self) -> bool:
         """No communication waits for its answer and no command for its acknowledgement."""
         return not self.outbox and not self._unacked
+
+
+@dataclass(frozen=True)
+class SessionRestart:
+    """What a new robot session (the robot process restarted) left without an answer: the
+    communications and recovery commands of the old session that were not answered, and the
+    numbered statements without a final status. Their fate is unknown: they may have run."""
+
+    old_session: str
+    new_session: str
+    comms: tuple[int, ...]
+    commands: tuple[int, ...]
+    numbers: tuple[int, ...]
+
+    def describe(self) -> str:
+        parts = []
+        if self.numbers:
+            parts.append("statements " + _ranges(self.numbers))
+        if self.comms:
+            parts.append("unanswered communications " + _ranges(self.comms))
+        if self.commands:
+            parts.append("unacknowledged commands " + _ranges(self.commands))
+        what = "; ".join(parts) or "nothing"
+        return f"robot restarted (session {self.old_session} -> {self.new_session}): the fate of {what} is unknown"
+
+
+def _ranges(numbers: tuple[int, ...]) -> str:
+    """``1-4, 7`` for (1, 2, 3, 4, 7)."""
+    out: list[list[int]] = []
+    for n in sorted(numbers):
+        if out and out[-1][1] == n - 1:
+            out[-1][1] = n
+        else:
+            out.append([n, n])
+    return ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in out)

@@ -50,11 +50,23 @@ def test_peg_transfer_through_a_real_3_s_link(robot, tmp_path) -> None:
 
 async def _peg_transfer(url: str):
     async with RobotClient(url) as client:
+        seen: set[tuple[str, str]] = set()
+
+        async def sample() -> None:  # the delay is no silence: arrivals keep their spacing
+            while True:
+                h = client.health()
+                # a robot without heartbeats is quiet between reports: judge only one that beats
+                seen.add((h.command if client.heartbeats_heard else "live", h.telemetry))
+                await asyncio.sleep(0.1)
+
+        sampler = asyncio.create_task(sample())
         t0 = time.monotonic()
         numbers = await client.submit(PEG_TRANSFER, timeout=30)
         finals = await client.wait_final(numbers, timeout=120)
         elapsed = time.monotonic() - t0
         await asyncio.sleep(3.5)  # telemetry of the resting arm, one delay old
+        sampler.cancel()
+        assert {c for c, _ in seen} == {"live"} and {t for _, t in seen} <= {"live", "none"}, seen
         return finals, elapsed, client.telemetry
 
 

@@ -1,0 +1,140 @@
+"""``teleprog up`` as an operator meets it when something behind the console goes wrong.
+
+The console with its own telerobot and link children (real processes, loopback WebSockets):
+
+* the link frozen (SIGSTOP): ``/api/link`` says the robot is ``silent`` with a growing age and
+  telemetry ``stale`` (no robot state read from old data) within the silence limit plus a margin,
+  and ``live`` again after SIGCONT;
+* the telerobot child killed while statements are queued: ``teleprog up`` reaps it, says so in
+  ``/api/link`` and starts it again on its port; the console reconnects to the new robot
+  session, the old statements read ``unknown`` in the sent list, and a new submission runs to done.
+
+The silence checks hold whether or not the robot sends heartbeats: a frozen link carries nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import time
+from pathlib import Path
+
+import httpx
+
+from support import RunningConsole, start_console, stop_process, wait_for
+
+CLIENT = {"X-Teleprog-Client": "safety"}
+SILENCE_LIMIT_S = 1.0
+MARGIN_S = 2.0  # polling, a loaded machine
+
+
+def _child_pid(console: RunningConsole, command: str) -> int:
+    """The pid of the console's ``teleprog <command>`` child."""
+    pid = console.proc.pid
+    # every thread's children: the watch restarts a child from a thread of its own
+    children = [c for task in Path(f"/proc/{pid}/task").iterdir() for c in (task / "children").read_text().split()]
+    for child in children:
+        argv = Path(f"/proc/{child}/cmdline").read_bytes().split(b"\0")
+        if b"server.cli" in argv and command.encode() in argv:
+            return int(child)
+    raise AssertionError(f"no {command} child of the console (pid {pid}) among {children}")
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _api(console: RunningConsole, method: str, path: str, body: object | None = None) -> dict:
+    r = console.api(method, path, headers=CLIENT, **({"json": body} if body is not None else {}))
+    assert r.status_code == 200, f"{method} {path}: {r.status_code} {r.text}"
+    return r.json()
+
+
+def _link(console: RunningConsole) -> dict:
+    return _api(console, "GET", "/api/link")
+
+
+def _ports(console: RunningConsole) -> tuple[int, int]:
+    pattern = re.compile(r"telerobot ws://127\.0\.0\.1:(\d+), link ws://127\.0\.0\.1:(\d+)")
+    m = wait_for(lambda: pattern.search(console.log_path.read_text()), 60, 0.1, "the children's ports in the log")
+    return int(m[1]), int(m[2])
+
+
+def test_frozen_link_shows_silent_and_stale_then_live_again(tmp_path) -> None:
+    console = start_console(tmp_path, "--delay-ms", "100")
+    link_pid = None
+    try:
+        _ports(console)
+        wait_for(lambda: (v := _link(console))["status"] == "live" and v["telemetry"] == "live", 60, 0.1, "a live link")
+        link_pid = _child_pid(console, "link")
+        os.kill(link_pid, signal.SIGSTOP)
+        frozen_at = time.monotonic()
+        view = wait_for(lambda: (v := _link(console))["status"] == "silent" and v, SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2, 0.05,
+                        "the link shown silent")
+        assert time.monotonic() - frozen_at < SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2
+        assert view["heard_ago_s"] > SILENCE_LIMIT_S
+        assert view["connected"] is True  # the socket is open: silence, not a cut
+        later = wait_for(lambda: (v := _link(console))["heard_ago_s"] > view["heard_ago_s"] + 0.5 and v, 5, 0.1,
+                         "the silence age growing")
+        assert later["status"] == "silent"
+        assert later["telemetry"] == "stale" and later["robot_state"] is None  # never an old state read as now
+        assert any("silent" in p for p in later["problems"]) and any("stale" in p for p in later["problems"])
+        os.kill(link_pid, signal.SIGCONT)
+        link_pid = None
+        wait_for(lambda: (v := _link(console))["status"] == "live" and v["telemetry"] == "live", 10, 0.1,
+                 "the link live again after SIGCONT")
+    finally:
+        if link_pid is not None:
+            os.kill(link_pid, signal.SIGCONT)
+        stop_process(console.proc)
+
+
+def test_killed_robot_child_is_restarted_and_old_statements_read_unknown(tmp_path) -> None:
+    console = start_console(tmp_path, "--delay-ms", "50")
+    try:
+        robot_port, _ = _ports(console)
+        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
+        session_before = _link(console)["robot_session"]
+        _api(console, "PUT", "/api/regime", {"regime": "free"})
+        q = _api(console, "GET", "/api/arm")["q_deg"]
+        for text in ("SPEED 5 %", f"DRIVE J1 TO {q[0] + 30:.2f} deg", f"DRIVE J1 TO {q[0]:.2f} deg",
+                     f"DRIVE J1 TO {q[0] + 30:.2f} deg"):
+            _api(console, "POST", "/api/program/insert", {"text": text})
+        _api(console, "POST", "/api/submit", {"start": 0, "stop": 4})
+        wait_for(lambda: any(s["status"] == "running" for s in _api(console, "GET", "/api/sent")["items"]), 20, 0.05,
+                 "a statement running")
+        robot_pid = _child_pid(console, "robot")
+        os.kill(robot_pid, signal.SIGKILL)
+        restarted = wait_for(
+            lambda: (v := _link(console))["children"].get("telerobot", "").startswith("running (restarted") and v, 60, 0.1,
+            "teleprog up saying it restarted the telerobot",
+        )
+        assert "last exit -9" in restarted["children"]["telerobot"]
+        assert not _zombie(robot_pid) and not Path(f"/proc/{robot_pid}").exists()  # reaped
+        assert _child_pid(console, "robot") != robot_pid
+        health = httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # the same port
+        assert health["status"] == "ok"
+        view = wait_for(lambda: (v := _link(console))["robot_restarts"] == 1 and v["status"] == "live" and v, 30, 0.1,
+                        "the console on the new robot session")
+        assert view["robot_session"] != session_before
+        sent = _api(console, "GET", "/api/sent")
+        assert sent["pending"] == 0
+        unknown = [s for s in sent["items"] if s["status"] == "unknown"]
+        assert unknown and all("robot restarted" in s["reason"] and "unknown" in s["reason"] for s in unknown)
+        assert all(s["status"] in ("done", "unknown") for s in sent["items"])
+        # a new submission is accepted by the new robot (numbered from 1) and runs
+        _api(console, "POST", "/api/program/insert", {"text": "EVENT after_restart"})
+        program = _api(console, "GET", "/api/program")
+        _api(console, "POST", "/api/submit", {"start": 0, "stop": program["empty_index"]})
+        done = wait_for(lambda: (s := _api(console, "GET", "/api/sent"))["pending"] == 0 and s["items"][-1]["status"] == "done"
+                        and s, 30, 0.1, "the new submission done")
+        assert done["items"][-1]["number"] >= 1 and done["items"][-1]["text"].startswith("EVENT")
+        assert httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()["numbered"] == len(
+            [s for s in done["items"] if s["submitted_at"] >= done["items"][-1]["submitted_at"]])
+    finally:
+        stop_process(console.proc)
+    assert console.proc.returncode == 0
