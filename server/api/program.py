@@ -26,7 +26,7 @@ class SelectIn(BaseModel):
 class StatementIn(BaseModel):
     """A statement as text (``DRAW TO (600, 0, 300) mm``) or as its JSON form; exactly one."""
 
-    text: str | None = None
+    text: str | None = Field(None, max_length=10_000)
     statement: Statement | None = None
 
     def resolve(self) -> Statement:
