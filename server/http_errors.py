@@ -46,12 +46,18 @@ class ErrorOut(BaseModel):
     errors: list[FieldErrorOut] | None = Field(None, description="each field a body's validation refused")
 
 
+def _refusal(description: str) -> dict[str, Any]:
+    # JSON whatever the route's own media type (a file download refuses in JSON too)
+    return {"model": ErrorOut, "description": description,
+            "content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorOut"}}}}
+
+
 ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
-    400: {"model": ErrorOut, "description": "malformed input"},
-    404: {"model": ErrorOut, "description": "nothing there (yet)"},
-    409: {"model": ErrorOut, "description": "not allowed now: a rule, the control lock, the regime, a preview"},
-    422: {"model": ErrorOut, "description": "not possible, or a body of the wrong shape"},
-    503: {"model": ErrorOut, "description": "the console is starting or stopping"},
+    400: _refusal("malformed input"),
+    404: _refusal("nothing there (yet)"),
+    409: _refusal("not allowed now: a rule, the control lock, the regime, a preview"),
+    422: _refusal("not possible, or a body of the wrong shape"),
+    503: _refusal("the console is starting or stopping"),
 }
 """The refusals every API route may answer, for the OpenAPI document."""
 
