@@ -8,6 +8,7 @@ from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import ApiIn
 from server.console_models import LocatedView
 
 router = APIRouter(prefix="/api", tags=["objects"])
@@ -29,10 +30,10 @@ class KeypointsOut(BaseModel):
 PIXEL_BOUND = 1e6
 """pixels: |u| and |v| above this are no point of any image."""
 
-Pixel = Annotated[float, Field(ge=-PIXEL_BOUND, le=PIXEL_BOUND, allow_inf_nan=False)]
+Pixel = Annotated[float, Field(ge=-PIXEL_BOUND, le=PIXEL_BOUND)]
 
 
-class LocateIn(BaseModel):
+class LocateIn(ApiIn):
     camera: str = Field(max_length=200)
     pixels: list[tuple[Pixel, Pixel]] = Field(max_length=1000, description="(u, v) of each feature point in the image, in keypoint order")
 

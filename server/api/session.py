@@ -6,17 +6,18 @@ from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import ApiIn
 from shared.errors import InputError
 from server.console_models import ControlGrant, ControlView, DisplayMode, Regime, RegimeView, SessionSnapshot
 
 router = APIRouter(prefix="/api", tags=["session"])
 
 
-class RegimeIn(BaseModel):
+class RegimeIn(ApiIn):
     regime: Regime | None = Field(description="force this regime; null follows the control zone again")
 
 
-class DisplayIn(BaseModel):
+class DisplayIn(ApiIn):
     mode: DisplayMode
 
 
