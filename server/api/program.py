@@ -13,7 +13,6 @@ from server.api.deps import ClientDep, SessionDep
 from server.api_models import MAX_COUNT, ApiIn
 from server.console_models import ProgramView
 from shared.errors import InputError
-from shared.language.parser import parse_statement
 from shared.language.statements import Speed, Statement, Until
 from shared.program.editor import KEEP
 
@@ -30,10 +29,11 @@ class StatementIn(ApiIn):
     text: str | None = Field(None, max_length=10_000)
     statement: Statement | None = None
 
-    def resolve(self) -> Statement:
+    def resolve(self) -> Statement | str:
+        """The statement model, or the text for the session to parse (after its lock check)."""
         if (self.text is None) == (self.statement is None):
             raise InputError("give the statement either as 'text' or as 'statement' (JSON form), not both or neither")
-        return parse_statement(self.text) if self.text is not None else self.statement  # type: ignore[return-value]
+        return self.text if self.text is not None else self.statement  # type: ignore[return-value]
 
 
 class ConditionsIn(ApiIn):
