@@ -334,7 +334,7 @@ def hostile_statement_bodies(draw) -> tuple[str, str, bool]:
     return endpoint, body, kind != "huge"
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=25, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck))
 @given(case=hostile_statement_bodies())
 def test_statement_endpoints_refuse_hostile_numbers_and_odd_json_without_change(up: RunningConsole, case: tuple[str, str, bool]) -> None:
     endpoint, body, must_refuse = case
