@@ -2,13 +2,34 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from server.session import VirtualState
 from shared.spatial import matrix_to_rpy
+
+
+MAX_COUNT = 1_000_000
+"""Largest index, count or number a request may carry (a program never holds this many)."""
+MAX_ANGLE_DEG = 3600.0
+"""deg: largest joint angle or rotation a request may carry (ten turns)."""
+MAX_LENGTH_MM = 1e6
+"""mm: largest length or coordinate a request may carry (a kilometre)."""
+MAX_TIME_S = 1e6
+"""s: largest time a request may carry."""
+
+
+class ApiIn(BaseModel):
+    """Base of every request body: numbers are finite (a ``"NaN"`` string, which pydantic would
+    turn into a float, is refused too)."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+
+Degrees = Annotated[float, Field(ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)]
+Millimetres = Annotated[float, Field(ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)]
 
 
 class HealthOut(BaseModel):
@@ -38,17 +59,17 @@ class StateOut(BaseModel):
         )
 
 
-class SetJointsIn(BaseModel):
-    deg: list[float] = Field(description="full joint vector, degrees")
+class SetJointsIn(ApiIn):
+    deg: list[Degrees] = Field(max_length=64, description="full joint vector, degrees")
 
 
-class JogJointIn(BaseModel):
-    joint: int = Field(ge=1, description="joint number, 1-based")
-    delta_deg: float = Field(description="rotation about the joint's own z axis, degrees")
+class JogJointIn(ApiIn):
+    joint: int = Field(ge=1, le=64, description="joint number, 1-based")
+    delta_deg: Degrees = Field(description="rotation about the joint's own z axis, degrees")
 
 
-class JogToolIn(BaseModel):
+class JogToolIn(ApiIn):
     frame: Literal["world", "base", "work", "tool"] = "world"
     constraint: Literal["x", "y", "z", "xy", "yz", "xz"] = "x"
     motion: Literal["translate", "rotate"] = "translate"
-    displacement: tuple[float, float, float] = Field(description="mm for translate, deg (rotation vector) for rotate")
+    displacement: tuple[Millimetres, Millimetres, Millimetres] = Field(description="mm for translate, deg (rotation vector) for rotate")

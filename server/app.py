@@ -98,7 +98,9 @@ def create_app(
         title="teleprog console",
         description=(
             "Teleprogramming console: drive the virtual robot, program, preview, submit, monitor. "
-            "Name the caller with the X-Teleprog-Client header; events stream on the WebSocket /api/events."
+            "Name the caller with the X-Teleprog-Client header; while a client holds control "
+            "(POST /api/control/request returns its token), calls that change state present the token "
+            "as X-Teleprog-Token. Events stream on the WebSocket /api/events."
         ),
         version="0.2.0",
         lifespan=lifespan,

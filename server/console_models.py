@@ -12,6 +12,8 @@ Events are a discriminated union on ``type`` (:data:`SessionEvent`); a listener 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from enum import Enum
 from typing import Annotated, Literal, Union
 
@@ -44,6 +46,10 @@ class RefusedByRule(ConflictError):
 
 class NotConnectedError(ConflictError):
     """An action that needs the robot, while the console has no robot configured (HTTP 409)."""
+
+
+class ControlLockError(ConflictError):
+    """Another client holds the control lock, or the token presented is not the holder's (HTTP 409)."""
 
 
 # ----------------------------------------------------------------------------------- enums
@@ -272,9 +278,36 @@ class DivergenceView(_View):
     message: str = ""
 
 
+@dataclass(frozen=True)
+class Caller:
+    """Who makes a call: the name it declares (``X-Teleprog-Client``; ``None``: the page served by
+    this console) and the control token it presents (``X-Teleprog-Token``; ``None``: none).
+    Only the token proves anything; the name is a label for people."""
+
+    name: str | None = None
+    token: str | None = dataclass_field(default=None, repr=False)
+
+
+class ControlTakeover(_View):
+    """The last explicit take-over of the control lock, so the former holder can see it."""
+
+    by: str = Field(description="label of the client that took control")
+    former: str = Field(description="label of the client that held it until then")
+    at: float = Field(description="when, Unix s")
+
+
 class ControlView(_View):
-    holder: str | None = None
-    since: float | None = None
+    """Who holds the control lock (a label, never the token) and the last take-over."""
+
+    holder: str | None = Field(None, description="the holder's X-Teleprog-Client name; null: nobody holds control")
+    since: float | None = Field(None, description="Unix s")
+    last_takeover: ControlTakeover | None = None
+
+
+class ControlGrant(ControlView):
+    """The answer to the caller that now holds control: the view and its token (never published)."""
+
+    token: str = Field(description="present it as the X-Teleprog-Token header on every call that changes state, and to release")
 
 
 class TerrainSensorsView(_View):

@@ -26,14 +26,19 @@ Listeners: ``subscribe(fn(VirtualState))`` is the fast path for the 3D scene (ev
 
 Errors: ``shared.errors.InputError`` for malformed input (HTTP 400), ``ConflictError`` /
 ``RefusedByRule`` when the state forbids an action now (409), other ``TeleprogError`` (e.g. a joint
-limit) 422. Every mutating method takes ``client``: the id of the caller; ``None`` is the page
-served by this console. When a client holds the control lock, everybody else only observes.
+limit) 422. Every mutating method takes ``client``: the caller (``server.console_models.Caller``:
+the name it declares and the control token it presents; a bare name or ``None``, the page served
+by this console, presents none). While a client holds the control lock, only calls presenting its
+token change anything (STOP excepted); everybody else observes. The token is returned to the
+holder alone; views and events name the holder by its label.
 """
 
 from __future__ import annotations
 
 import asyncio
+import copy
 import logging
+import secrets
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -46,9 +51,13 @@ from server.console_models import (
     ArmChanged,
     ArmView,
     CollisionChanged,
+    Caller,
     CollisionView,
     ConflictError,
     ControlChanged,
+    ControlGrant,
+    ControlLockError,
+    ControlTakeover,
     ControlView,
     DisplayMode,
     DisplayModeChanged,
@@ -199,6 +208,69 @@ class _Preview:
     rate: float = 1.0
 
 
+def _as_caller(client: Caller | str | None) -> Caller:
+    """A ``Caller`` from what the session's methods accept as ``client``."""
+    if isinstance(client, Caller):
+        return client
+    return Caller(name=client or None)
+
+
+def _plan(statements: list[Statement], robot, cell: Cell, start_q: np.ndarray) -> Plan:
+    """``plan_program`` from ``start_q``; a numerical failure of the planner on what it was given
+    (an overflow, a NaN reaching an index) is refused as ``InputError`` naming it, never raised
+    as itself."""
+    try:
+        with np.errstate(all="ignore"):
+            return plan_program(statements, robot, cell, start_q=start_q)
+    except TeleprogError:
+        raise
+    except (ArithmeticError, ValueError, IndexError, np.linalg.LinAlgError) as exc:
+        log.warning("planning %d statement(s) failed: %r", len(statements), exc)
+        raise InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}") from None
+
+
+def _locate_or_refuse(camera, keypoints: np.ndarray, px: np.ndarray):
+    """``shared.vision.pose.locate_object``, with pixels that cannot determine a pose refused as
+    ``InputError`` instead of a numerical failure (SVD not converging, a NaN pose)."""
+    if not np.all(np.isfinite(px)):
+        raise InputError("pixels are degenerate: every u and v must be a finite number")
+    distinct = len({(float(u), float(v)) for u, v in px})
+    if distinct < len(px):
+        raise InputError(f"pixels are degenerate: {len(px) - distinct + 1} of the {len(px)} points are at the same pixel")
+    try:
+        with np.errstate(all="ignore"):
+            located = locate_object_pose(camera, keypoints, px)
+    except (np.linalg.LinAlgError, ArithmeticError, ValueError) as exc:
+        raise InputError(f"pixels are degenerate: no pose fits them ({exc})") from None
+    if not (np.all(np.isfinite(located.world_T_object)) and np.isfinite(located.residual_px)):
+        raise InputError("pixels are degenerate: no finite pose fits them")
+    return located
+
+
+def _copy_editor(editor: Editor) -> Editor:
+    """An editor with the same state and its own copy of the undo/redo history (the states in
+    it are immutable), to try an operation on."""
+    trial = copy.copy(editor)
+    trial._undo = list(editor._undo)  # noqa: SLF001 - the editor's own lists, copied not changed
+    trial._redo = list(editor._redo)  # noqa: SLF001
+    return trial
+
+
+def _checked_statement(statement: Statement) -> Statement:
+    """``statement`` validated again by its own model and formatted once; ``InputError`` (a
+    validation error) or the formatter's error names what is wrong."""
+    from pydantic import ValidationError
+
+    try:
+        checked = type(statement).model_validate(statement.model_dump())
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first.get("loc", ()))
+        raise InputError(f"{statement.kind}: {where + ': ' if where else ''}{first.get('msg', 'invalid')}") from None
+    format_statement(checked)  # raises InputError for what cannot be written (a NaN, say)
+    return checked
+
+
 def _m(a: np.ndarray) -> list[list[float]]:
     return np.asarray(a, dtype=float).tolist()
 
@@ -274,6 +346,8 @@ class Session:
         self._display_before_preview = DisplayMode.TELEPROGRAMMING
         self._holder: str | None = None
         self._holder_since: float | None = None
+        self._holder_token: str | None = None
+        self._takeover: ControlTakeover | None = None
         # robot link
         self._client = None  # server.robot_client.RobotClient
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -477,39 +551,107 @@ class Session:
             return self._divergence
 
     def control_view(self) -> ControlView:
+        """Who holds control, as everybody may see it: the holder's label, never its token."""
         with self._lock:
-            return ControlView(holder=self._holder, since=self._holder_since)
+            return ControlView(holder=self._holder, since=self._holder_since, last_takeover=self._takeover)
 
     # =========================================================================== control lock
-    def request_control(self, client: str) -> ControlView:
-        """Take the control lock for ``client`` (a non-empty id). Refused while another holds it."""
-        if not client:
-            raise InputError("a client id is needed to take control (header X-Teleprog-Client)")
+    def request_control(self, client: Caller | str) -> ControlGrant:
+        """Take the control lock for the caller (a non-empty name); the grant holds the token that
+        later calls present. Refused while another holds it; asking again with the token gives
+        the same grant."""
+        caller = _as_caller(client)
+        if not caller.name:
+            raise InputError("a client name is needed to take control (header X-Teleprog-Client)")
         with self._lock:
-            if self._holder not in (None, client):
-                raise ConflictError(f"control is held by {self._holder!r}; ask it to release control first")
-            if self._holder is None:
-                self._holder, self._holder_since = client, time.time()
-            view = self.control_view()
-        self._emit([ControlChanged(control=view)])
-        return view
+            if self._holder is not None:
+                if self._presents_token(caller):
+                    return self._grant()
+                raise ControlLockError(
+                    f"control is held by {self._holder!r}; ask it to release control, or take over "
+                    "explicitly with POST /api/control/takeover"
+                )
+            self._holder, self._holder_since = caller.name, time.time()
+            self._holder_token = secrets.token_urlsafe(16)
+            grant = self._grant()
+        log.info("control taken by %r", caller.name)
+        self._emit([ControlChanged(control=self.control_view())])
+        return grant
 
-    def release_control(self, client: str) -> ControlView:
-        """Give the lock back; releasing a lock one does not hold is refused."""
+    def takeover_control(self, client: Caller | str) -> ControlGrant:
+        """Take the control lock whoever holds it (an explicit, logged take-over): the former
+        holder's token stops working, and the control view and a notice say who took over when."""
+        caller = _as_caller(client)
+        if not caller.name:
+            raise InputError("a client name is needed to take over control (header X-Teleprog-Client)")
+        with self._lock:
+            if self._holder is not None and self._presents_token(caller):
+                return self._grant()
+            former = self._holder
+            now = time.time()
+            if former is not None:
+                self._takeover = ControlTakeover(by=caller.name, former=former, at=now)
+            self._holder, self._holder_since = caller.name, now
+            self._holder_token = secrets.token_urlsafe(16)
+            grant = self._grant()
+        events: list[SessionEvent] = [ControlChanged(control=self.control_view())]
+        if former is not None:
+            log.warning("control taken over by %r from %r", caller.name, former)
+            events.append(Notice(level="warning", message=f"control taken over by {caller.name!r} from {former!r}"))
+        else:
+            log.info("control taken by %r (nobody held it)", caller.name)
+        self._emit(events)
+        return grant
+
+    def release_control(self, client: Caller | str | None) -> ControlView:
+        """Give the lock back; it needs the holder's token. Releasing when nobody holds control
+        changes nothing."""
+        caller = _as_caller(client)
         with self._lock:
             if self._holder is None:
                 return self.control_view()
-            if self._holder != client:
-                raise ConflictError(f"control is held by {self._holder!r}, not by {client!r}")
-            self._holder = self._holder_since = None
-            view = self.control_view()
+            if not self._presents_token(caller):
+                raise ControlLockError(self._lock_message(caller, "release control"))
+            former = self._holder
+            self._holder = self._holder_since = self._holder_token = None
+        log.info("control released by %r", former)
+        view = self.control_view()
         self._emit([ControlChanged(control=view)])
         return view
 
-    def _check_control(self, client: str | None) -> None:
-        if self._holder is not None and self._holder != client:
-            who = "this page" if client is None else repr(client)
-            raise ConflictError(f"control is held by {self._holder!r}: {who} can only observe")
+    def _grant(self) -> ControlGrant:
+        assert self._holder_token is not None
+        return ControlGrant(holder=self._holder, since=self._holder_since, last_takeover=self._takeover, token=self._holder_token)
+
+    def _presents_token(self, caller: Caller) -> bool:
+        return (
+            self._holder_token is not None
+            and caller.token is not None
+            and secrets.compare_digest(caller.token.encode(), self._holder_token.encode())
+        )
+
+    def _holder_caller(self) -> Caller:
+        """The holder as a caller (for what the session does on its behalf, e.g. streaming)."""
+        return Caller(self._holder, self._holder_token)
+
+    def _lock_message(self, caller: Caller, what: str) -> str:
+        who = "this page" if caller.name is None else repr(caller.name)
+        if caller.token is None:
+            return (f"control is held by {self._holder!r}: {who} can only observe "
+                    f"(to {what}, present the holder's token in the X-Teleprog-Token header)")
+        takeover = self._takeover
+        since = f"; {takeover.by!r} took over from {takeover.former!r}" if takeover is not None else ""
+        return f"control is held by {self._holder!r} and the token {who} presented is not its token{since}: cannot {what}"
+
+    def _check_control(self, client: Caller | str | None) -> None:
+        """Refuse a call that changes state unless nobody holds control or the caller presents
+        the holder's token. ``client`` is a ``Caller``; a bare name (or ``None``, the page)
+        presents no token."""
+        if self._holder is None:
+            return
+        caller = _as_caller(client)
+        if not self._presents_token(caller):
+            raise ControlLockError(self._lock_message(caller, "change anything"))
 
     # =========================================================================== driving
     def set_q(self, q: np.ndarray, *, client: str | None = None) -> VirtualState:
@@ -667,6 +809,8 @@ class Session:
 
     def insert(self, statement: Statement | str, *, client: str | None = None) -> ProgramView:
         """Insert a statement (a model, or its text form) before the selection."""
+        with self._lock:
+            self._check_control(client)  # before any work on the caller's input
         st = self._statement(statement)
         return self._edit(lambda e: e.insert(st), client)
 
@@ -676,6 +820,8 @@ class Session:
 
     def modify(self, statement: Statement | str, *, client: str | None = None) -> ProgramView:
         """Replace the selected statement by one of the same kind (§4.3.6 rules)."""
+        with self._lock:
+            self._check_control(client)  # before any work on the caller's input
         st = self._statement(statement)
         return self._edit(lambda e: e.modify(st), client)
 
@@ -700,6 +846,11 @@ class Session:
             more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
             raise InputError(lines[0] + more)
         state = ProgramState.of(parsed.statements)  # InputError when the rules are broken
+        for i, st in enumerate(parsed.statements):
+            try:
+                _checked_statement(st)
+            except TeleprogError as exc:
+                raise InputError(f"{name}: statement {i + 1}: {exc}") from None
         with self._lock:
             self._check_control(client)
             self._check_not_previewing("load a program")
@@ -722,9 +873,12 @@ class Session:
         raise InputError(f"unknown program format {fmt!r}; valid: text, json")
 
     def _statement(self, statement: Statement | str) -> Statement:
+        """The statement, checked as a program file's would be before it enters the program: a
+        text form parsed; a model validated again by its own class (whatever built it) and
+        written as text once, so that nothing the program view cannot show gets in."""
         if isinstance(statement, str):
             return parse_statement(statement)
-        return statement
+        return _checked_statement(statement)
 
     def _check_not_previewing(self, what: str) -> None:
         if self._preview is not None:
@@ -732,14 +886,20 @@ class Session:
             raise ConflictError(f"cannot {what} while statements {p.start + 1}..{p.stop} are being previewed; only selection is allowed")
 
     def _edit(self, op: Callable[[Editor], object], client: str | None) -> ProgramView:
+        """Apply an editor operation on a copy of the editor and keep it only when the operation
+        and the program's view both succeed: a refused or failed edit changes nothing."""
         with self._lock:
             self._check_control(client)
-            result = op(self._editor)
-            if isinstance(result, Refusal):
-                refusal = result
-            else:
-                refusal = None
-            view = self.program_view()
+            before = self._editor
+            trial = _copy_editor(before)
+            try:
+                result = op(trial)
+                refusal = result if isinstance(result, Refusal) else None
+                self._editor = trial
+                view = self.program_view()
+            except Exception:
+                self._editor = before
+                raise
         if refusal is not None:
             self._emit([Notice(level="warning", message=refusal.message, rule=refusal.rule.value)])
             raise RefusedByRule(refusal)
@@ -772,7 +932,7 @@ class Session:
         self._emit([ProgramChanged(program=view), *notices])
         if stream:
             try:
-                self.submit(0, self.editor_state.empty_index, client=self._holder)
+                self.submit(0, self.editor_state.empty_index, client=self._holder_caller())
             except TeleprogError as exc:
                 self._emit([Notice(level="warning", message=f"streaming refused: {exc}")])
 
@@ -804,7 +964,7 @@ class Session:
         return view
 
     def _plan_preview(self, statements: Sequence[Statement], start: int, stop: int) -> _Preview:
-        plan = plan_program(list(statements[:stop]), self.robot, self.cell, start_q=self._start_q)
+        plan = _plan(list(statements[:stop]), self.robot, self.cell, self._start_q)
         warnings: list[PreviewWarning] = []
         refusal = None
         if self._start_unknown:
@@ -1111,10 +1271,16 @@ class Session:
                     prefix.append(SetMode(mode=Mode.FORCE))
             elif self._robot_mode is Mode.FORCE and not any(getattr(s, "kind", "") == "MODE" for s in statements[:1]):
                 prefix.append(SetMode(mode=Mode.POSITION))
+            for i, st in enumerate(statements):  # whatever built them, they are checked before they leave
+                try:
+                    _checked_statement(st)
+                except TeleprogError as exc:
+                    raise InputError(f"statement {start + i + 1}: {exc}") from None
+            outgoing = prefix + statements
+            plan = None if self._start_unknown else _plan(outgoing, self.robot, self.cell, self._start_q)  # before anything changes
             result = self._editor.submit(start, stop)
             if isinstance(result, Refusal):
                 raise RefusedByRule(result)
-            outgoing = prefix + statements
             for st in outgoing:
                 if st.kind == "MODE":
                     self._robot_mode = st.mode
@@ -1124,7 +1290,7 @@ class Session:
             for st in outgoing:
                 self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, comm))
             held_before = self._held
-            self._advance_start(outgoing)
+            self._advance_start(outgoing, plan)
             arm_events: list[SessionEvent] = []
             if self._held != held_before or self._held is not None:
                 self._move_held()
@@ -1137,12 +1303,14 @@ class Session:
         self._refresh_predicted()
         return view
 
-    def _advance_start(self, statements: list[Statement]) -> None:
-        """The program now starts where the submitted statements are predicted to end; a grasp
-        or release among them changes what the virtual gripper holds."""
+    def _advance_start(self, statements: list[Statement], plan: Plan | None = None) -> None:
+        """The program now starts where the submitted statements are predicted to end (``plan``:
+        theirs from the start, when already made); a grasp or release among them changes what
+        the virtual gripper holds."""
         if self._start_unknown:
             return
-        plan = plan_program(statements, self.robot, self.cell, start_q=self._start_q)
+        if plan is None:
+            plan = _plan(statements, self.robot, self.cell, self._start_q)
         self._start_q = plan.q_final.copy()
         self._start_source = "predicted"
         if plan.after_task is not None or plan.refusal is not None:
@@ -1335,7 +1503,7 @@ class Session:
                 frame = self._telemetry
                 start = np.array(frame.q, dtype=float) if frame is not None else self._start_q
                 try:
-                    plan = plan_program([s.statement for s in pending], self.robot, self.cell, start_q=start)
+                    plan = _plan([s.statement for s in pending], self.robot, self.cell, start)
                 except TeleprogError:
                     plan = None
                 if plan is None or plan.duration <= 0:
@@ -1465,7 +1633,11 @@ class Session:
 
     def locate_object(self, name: str, camera: str, pixels: Sequence[Sequence[float]], *, client: str | None = None) -> LocatedView:
         """Correct a virtual object's pose from its feature points seen in a calibrated camera's
-        image (thesis §4.2.3): ``pixels`` (u, v) in the order of the object's keypoints."""
+        image (thesis §4.2.3): ``pixels`` (u, v) in the order of the object's keypoints.
+        Pixels that cannot determine a pose (repeated, collinear, not finite) are refused with
+        ``InputError`` ("pixels are degenerate: ...")."""
+        with self._lock:
+            self._check_control(client)  # before the solve: an observer's call does no work
         obj = self._resolve_object(name)
         if obj is None:
             raise UnknownNameError("object", name, self.cell.object_names)
@@ -1474,10 +1646,13 @@ class Session:
         keypoints = self.cell.object(obj).keypoints
         if len(keypoints) < 4:
             raise InputError(f"object {obj!r} has {len(keypoints)} feature points in the cell file; locating it needs 4")
-        px = np.asarray(pixels, dtype=float)
+        try:
+            px = np.asarray(pixels, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"{obj!r} has {len(keypoints)} feature points: give one pixel (u, v) for each, as numbers") from None
         if px.ndim != 2 or px.shape[1] != 2 or px.shape[0] != len(keypoints):
             raise InputError(f"{obj!r} has {len(keypoints)} feature points: give one pixel (u, v) for each, in order")
-        located = locate_object_pose(self.cell.cameras[camera], keypoints, px)
+        located = _locate_or_refuse(self.cell.cameras[camera], keypoints, px)
         if located.residual_px > self.settings.locate_max_residual_px:
             raise InputError(
                 f"the picked pixels do not fit {obj!r}'s feature points (reprojection error {located.residual_px:.1f} px, "

@@ -1,4 +1,4 @@
-"""Shared dependencies of the API routers: the session and the caller's client id."""
+"""Shared dependencies of the API routers: the session, the caller, and strict JSON bodies."""
 
 from __future__ import annotations
 
@@ -6,7 +6,13 @@ from typing import Annotated
 
 from fastapi import Depends, Header, HTTPException, Request
 
+from server.console_models import Caller
 from server.session import Session
+from shared.errors import InputError
+from shared.wire.strict_json import StrictJSONError, loads_strict
+
+CLIENT_HEADER = "X-Teleprog-Client"
+TOKEN_HEADER = "X-Teleprog-Token"
 
 
 def get_session(request: Request) -> Session:
@@ -16,10 +22,34 @@ def get_session(request: Request) -> Session:
     return console.session
 
 
-def get_client(x_teleprog_client: Annotated[str | None, Header()] = None) -> str | None:
-    """The caller's id from the ``X-Teleprog-Client`` header (``None``: the page)."""
-    return x_teleprog_client or None
+def get_client(
+    x_teleprog_client: Annotated[str | None, Header(max_length=200, description="the caller's name (a label others see)")] = None,
+    x_teleprog_token: Annotated[str | None, Header(max_length=200, description="the control token POST /api/control/request returned")] = None,
+) -> Caller:
+    """The caller: the name from ``X-Teleprog-Client`` (none: the page) and the control token from
+    ``X-Teleprog-Token`` (none: it holds no control)."""
+    return Caller(name=x_teleprog_client or None, token=x_teleprog_token or None)
+
+
+async def strict_json_body(request: Request) -> None:
+    """Refuse a JSON body that Python's ``json`` would take but JSON does not: NaN, Infinity,
+    numbers too large to be finite, a key given twice, deep nesting, bytes that are not UTF-8
+    (400, naming what). Runs before the body is validated, for every route that takes a JSON body."""
+    route = request.scope.get("route")
+    if getattr(route, "body_field", None) is None:
+        return
+    content_type = request.headers.get("content-type", "")
+    media = content_type.split(";", 1)[0].strip().lower()
+    if not (media == "application/json" or (media.startswith("application/") and media.endswith("+json"))):
+        return
+    raw = await request.body()
+    if not raw:
+        return
+    try:
+        loads_strict(raw)
+    except StrictJSONError as exc:
+        raise InputError(f"{request.method} {request.url.path}: the body is not strict JSON: {exc}") from None
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
-ClientDep = Annotated[str | None, Depends(get_client)]
+ClientDep = Annotated[Caller, Depends(get_client)]

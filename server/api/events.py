@@ -14,6 +14,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import TypeAdapter
 
 from server.console_models import SessionEvent
+from shared.wire.strict_json import dumps_finite
 
 router = APIRouter(tags=["events"])
 log = logging.getLogger(__name__)
@@ -48,9 +49,7 @@ async def events(websocket: WebSocket) -> None:
 
     def snapshot_text() -> str:
         snap = session.snapshot().model_dump(mode="json")
-        import json
-
-        return json.dumps({"type": "snapshot", **snap})
+        return dumps_finite({"type": "snapshot", **snap})  # strict JSON even if a view held a NaN
 
     unsubscribe = session.subscribe_events(push)
     try:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import ApiIn
 from server.console_models import LocatedView
 
 router = APIRouter(prefix="/api", tags=["objects"])
@@ -24,9 +27,15 @@ class KeypointsOut(BaseModel):
     keypoints: list[list[float]] = Field(description="feature points in the object's frame, m, in the order pixels are given")
 
 
-class LocateIn(BaseModel):
-    camera: str
-    pixels: list[tuple[float, float]] = Field(description="(u, v) of each feature point in the image, in keypoint order")
+PIXEL_BOUND = 1e6
+"""pixels: |u| and |v| above this are no point of any image."""
+
+Pixel = Annotated[float, Field(ge=-PIXEL_BOUND, le=PIXEL_BOUND)]
+
+
+class LocateIn(ApiIn):
+    camera: str = Field(max_length=200)
+    pixels: list[tuple[Pixel, Pixel]] = Field(max_length=1000, description="(u, v) of each feature point in the image, in keypoint order")
 
 
 @router.get("/cameras", response_model=list[CameraOut])
@@ -44,5 +53,6 @@ def keypoints(session: SessionDep) -> list[KeypointsOut]:
 @router.post("/objects/{name}/locate", response_model=LocatedView)
 def locate(name: str, body: LocateIn, session: SessionDep, client: ClientDep) -> LocatedView:
     """Correct the virtual object's pose from its feature points seen at ``pixels`` in the
-    named camera's image; 400 when the pixels do not fit (wrong order, wrong object)."""
+    named camera's image; 400 when the pixels do not fit (wrong order, wrong object) or cannot
+    determine a pose (repeated or collinear points)."""
     return session.locate_object(name, body.camera, body.pixels, client=client)

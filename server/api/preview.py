@@ -3,29 +3,30 @@
 from __future__ import annotations
 
 from fastapi import APIRouter
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import MAX_COUNT, MAX_TIME_S, ApiIn
 from server.console_models import PreviewView
 
 router = APIRouter(prefix="/api/preview", tags=["preview"])
 
 
-class RangeIn(BaseModel):
-    start: int = Field(0, ge=0, description="first statement, 0-based")
-    stop: int = Field(description="one past the last statement")
+class RangeIn(ApiIn):
+    start: int = Field(0, ge=0, le=MAX_COUNT, description="first statement, 0-based")
+    stop: int = Field(ge=0, le=MAX_COUNT, description="one past the last statement")
 
 
-class PlayIn(BaseModel):
+class PlayIn(ApiIn):
     rate: float = Field(1.0, gt=0, le=100, description="x real time")
 
 
-class SeekIn(BaseModel):
-    t: float = Field(description="s from the range's start")
+class SeekIn(ApiIn):
+    t: float = Field(ge=-MAX_TIME_S, le=MAX_TIME_S, description="s from the range's start")
 
 
-class StepIn(BaseModel):
-    statements: int = Field(1, description="+n: to the end of the n-th statement ahead; -n: back")
+class StepIn(ApiIn):
+    statements: int = Field(1, ge=-MAX_COUNT, le=MAX_COUNT, description="+n: to the end of the n-th statement ahead; -n: back")
 
 
 @router.get("", response_model=PreviewView)

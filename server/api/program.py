@@ -7,35 +7,36 @@ from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import PlainTextResponse
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import MAX_COUNT, ApiIn
 from server.console_models import ProgramView
 from shared.errors import InputError
-from shared.language.parser import parse_statement
 from shared.language.statements import Speed, Statement, Until
 from shared.program.editor import KEEP
 
 router = APIRouter(prefix="/api/program", tags=["program"])
 
 
-class SelectIn(BaseModel):
-    index: int = Field(description="0-based; the trailing empty statement is entries[-1]")
+class SelectIn(ApiIn):
+    index: int = Field(ge=-MAX_COUNT, le=MAX_COUNT, description="0-based; the trailing empty statement is entries[-1]")
 
 
-class StatementIn(BaseModel):
+class StatementIn(ApiIn):
     """A statement as text (``DRAW TO (600, 0, 300) mm``) or as its JSON form; exactly one."""
 
-    text: str | None = None
+    text: str | None = Field(None, max_length=10_000)
     statement: Statement | None = None
 
-    def resolve(self) -> Statement:
+    def resolve(self) -> Statement | str:
+        """The statement model, or the text for the session to parse (after its lock check)."""
         if (self.text is None) == (self.statement is None):
             raise InputError("give the statement either as 'text' or as 'statement' (JSON form), not both or neither")
-        return parse_statement(self.text) if self.text is not None else self.statement  # type: ignore[return-value]
+        return self.text if self.text is not None else self.statement  # type: ignore[return-value]
 
 
-class ConditionsIn(BaseModel):
+class ConditionsIn(ApiIn):
     """Fields left out are kept; ``null`` clears. Text forms: ``with`` like ``SPEED 20 %``,
     ``until`` like ``FORCE > 5 N``."""
 
@@ -45,13 +46,13 @@ class ConditionsIn(BaseModel):
     clear_until: bool = False
 
 
-class AutoIn(BaseModel):
+class AutoIn(ApiIn):
     on: bool
 
 
-class LoadIn(BaseModel):
-    text: str = Field(description="the file's content")
-    filename: str = Field("program.tp", description="its name; .json selects the JSON form")
+class LoadIn(ApiIn):
+    text: str = Field(max_length=10_000_000, description="the file's content")
+    filename: str = Field("program.tp", max_length=1000, description="its name; .json selects the JSON form")
 
 
 @router.get("", response_model=ProgramView)

@@ -2,20 +2,22 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, HTTPException
+from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
-from server.console_models import ControlView, DisplayMode, Regime, RegimeView, SessionSnapshot
+from server.api_models import ApiIn
+from shared.errors import InputError
+from server.console_models import ControlGrant, ControlView, DisplayMode, Regime, RegimeView, SessionSnapshot
 
 router = APIRouter(prefix="/api", tags=["session"])
 
 
-class RegimeIn(BaseModel):
+class RegimeIn(ApiIn):
     regime: Regime | None = Field(description="force this regime; null follows the control zone again")
 
 
-class DisplayIn(BaseModel):
+class DisplayIn(ApiIn):
     mode: DisplayMode
 
 
@@ -34,18 +36,28 @@ def control(session: SessionDep) -> ControlView:
     return session.control_view()
 
 
-@router.post("/control/request", response_model=ControlView)
-def request_control(session: SessionDep, client: ClientDep) -> ControlView:
-    """Take the control lock (needs the X-Teleprog-Client header); 409 while another holds it."""
-    if client is None:
-        raise HTTPException(400, "name yourself with the X-Teleprog-Client header to take control")
+@router.post("/control/request", response_model=ControlGrant)
+def request_control(session: SessionDep, client: ClientDep) -> ControlGrant:
+    """Take the control lock (name yourself with X-Teleprog-Client). The answer holds the token:
+    present it as X-Teleprog-Token on every call that changes state, and to release. 409 while
+    another holds control (take over explicitly with ``/api/control/takeover``)."""
+    if client.name is None:
+        raise InputError("name yourself with the X-Teleprog-Client header to take control")
     return session.request_control(client)
+
+
+@router.post("/control/takeover", response_model=ControlGrant)
+def takeover_control(session: SessionDep, client: ClientDep) -> ControlGrant:
+    """Take the control lock from whoever holds it; logged, and the former holder sees it (a
+    notice and a control event on ``/api/events``, ``last_takeover`` in ``GET /api/control``)."""
+    if client.name is None:
+        raise InputError("name yourself with the X-Teleprog-Client header to take over control")
+    return session.takeover_control(client)
 
 
 @router.post("/control/release", response_model=ControlView)
 def release_control(session: SessionDep, client: ClientDep) -> ControlView:
-    if client is None:
-        raise HTTPException(400, "name yourself with the X-Teleprog-Client header to release control")
+    """Give the lock back; needs the holder's token (X-Teleprog-Token)."""
     return session.release_control(client)
 
 

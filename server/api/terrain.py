@@ -5,24 +5,24 @@ from __future__ import annotations
 
 import numpy as np
 from fastapi import APIRouter
-from pydantic import BaseModel, Field, model_validator
+from pydantic import Field, model_validator
 
 from server.api.deps import ClientDep, SessionDep
-from server.api_models import StateOut
+from server.api_models import MAX_COUNT, ApiIn, Millimetres, StateOut
 from server.console_models import PlacementView, ProgramView, TerrainView
 
 router = APIRouter(prefix="/api/terrain", tags=["terrain"])
 
 
-class SensorsIn(BaseModel):
+class SensorsIn(ApiIn):
     show: bool = Field(description="draw the virtual sensors and send their segments with each terrain view")
 
 
-class PlaceIn(BaseModel):
+class PlaceIn(ApiIn):
     """The target: a terrain point, or a ground position whose terrain point is meant."""
 
-    target_mm: tuple[float, float, float] | None = Field(None, description="target point on the terrain, world, mm")
-    ground_mm: tuple[float, float] | None = Field(None, description="ground position (x, y), world, mm")
+    target_mm: tuple[Millimetres, Millimetres, Millimetres] | None = Field(None, description="target point on the terrain, world, mm")
+    ground_mm: tuple[Millimetres, Millimetres] | None = Field(None, description="ground position (x, y), world, mm")
 
     @model_validator(mode="after")
     def _one_target(self) -> "PlaceIn":
@@ -31,8 +31,8 @@ class PlaceIn(BaseModel):
         return self
 
 
-class GotoIn(BaseModel):
-    candidate: int = Field(1, ge=1, description="placement candidate, 1-based (1: the best)")
+class GotoIn(ApiIn):
+    candidate: int = Field(1, ge=1, le=MAX_COUNT, description="placement candidate, 1-based (1: the best)")
 
 
 @router.get("", response_model=TerrainView)

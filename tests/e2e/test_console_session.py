@@ -71,7 +71,8 @@ class EventLog:
 def test_whole_session_through_the_api(up: RunningConsole) -> None:
     events = EventLog(up)
     try:
-        call(up, "POST", "/api/control/request")
+        grant = call(up, "POST", "/api/control/request")
+        CLIENT["X-Teleprog-Token"] = grant["token"]  # every call below changes state as the holder
         wait_for("the link", lambda: call(up, "GET", "/api/link")["connected"])
         call(up, "PUT", "/api/regime", {"regime": "quasi"})
         call(up, "PUT", "/api/program/auto", {"on": True})
@@ -134,6 +135,7 @@ def test_whole_session_through_the_api(up: RunningConsole) -> None:
     finally:
         events.close()
         up.api("POST", "/api/control/release", headers=CLIENT)
+        CLIENT.pop("X-Teleprog-Token", None)
 
 
 def test_stop_during_a_long_move_stops_the_robot(up: RunningConsole) -> None:

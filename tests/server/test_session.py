@@ -11,6 +11,7 @@ import pytest
 
 from server.console_models import (
     ArmChanged,
+    Caller,
     CollisionChanged,
     ConflictError,
     DisplayMode,
@@ -140,18 +141,24 @@ def test_driving_into_the_table_reports_collision_and_zone(session: Session) -> 
 
 
 def test_control_lock_lets_others_only_observe(session: Session) -> None:
-    session.request_control("alice")
+    grant = session.request_control("alice")
+    alice = Caller("alice", grant.token)
     with pytest.raises(ConflictError, match="alice"):
         session.request_control("bob")
     with pytest.raises(ConflictError, match="observe"):
         session.jog_joint(1, 0.05, client="bob")
     with pytest.raises(ConflictError):
         session.jog_joint(1, 0.05)  # the page too
-    session.jog_joint(1, 0.05, client="alice")
+    with pytest.raises(ConflictError, match="token"):
+        session.jog_joint(1, 0.05, client="alice")  # the name alone proves nothing
+    session.jog_joint(1, 0.05, client=alice)
     assert session.snapshot().control.holder == "alice"
+    assert grant.token not in session.snapshot().model_dump_json()
     with pytest.raises(ConflictError):
         session.release_control("bob")
-    session.release_control("alice")
+    with pytest.raises(ConflictError):
+        session.release_control("alice")
+    session.release_control(alice)
     session.jog_joint(1, 0.05, client="bob")
 
 
