@@ -29,9 +29,10 @@ statements (EVENT, SPEED, MODE, grasp) cannot slip past a stop.
 
 Contact recovery: a contact the collision core finds (arm against the table or the plate) is
 never commanded: the arm holds at the last servo sample that was clear. A force contact of the
-held peg stops where the force crossed the limit; a motion that starts in such a contact may go
-on as long as the (noise-free) contact force does not grow, so backing away, sliding along or
-lifting off runs, and pressing further fails at once; clear of the contact the normal rules apply.
+held peg stops where the force crossed the limit; a motion that starts in contact may go on as
+long as the (noise-free) contact force stays under the larger of the limit and the force it
+started with, so backing away, sliding along or lifting off runs, and pressing further fails at
+once; clear of the contact the normal rules apply.
 
 Tasks (``shared.language.tasks``) run as generators of small guarded motions, planned by the
 same interpreter: ``insert_peg`` approaches the hole, descends until contact, searches around
@@ -304,10 +305,12 @@ class Executor:
         """Step a planned motion one servo period per tick; check for surprises on every step."""
         guarded = expect_contact or isinstance(segment.until, (UntilForce, UntilContact)) or self.mode is Mode.FORCE
         limit = self.settings.max_force if guarded else self.settings.contact_limit
-        # a motion that starts pressing harder than the limit (after a contact fault) may back
-        # away: it fails only where the contact force would grow
+        # a motion that starts in contact (after a contact fault the arm rests at the limit) may
+        # back away: it fails only where the contact force would grow past the limit or past
+        # what it started with, whichever is larger (noise-free: the sensor's noise at the limit
+        # must not fail a motion that lifts off)
         start = self.world.contact(self.q, noise=False)
-        pressing = start.magnitude if start.touching and start.magnitude > limit else None
+        pressing = max(start.magnitude, limit) if start.touching else None
         stepper = segment.stepper(_WorldSensors(self.world), dt=self.dt, t0=self.time)
         while True:
             step = stepper.step()
@@ -319,9 +322,10 @@ class Executor:
     def _move_to(self, q: np.ndarray, guarded: bool, pressing: float | None = None) -> float | None:
         """Servo to ``q``; on a force over the limit, stop where the limit was crossed and fail.
 
-        ``pressing``: the contact force (N, noise-free) the motion is allowed to keep while it
-        started over the limit; the step fails if the force would grow past it. Returns the new
-        allowance (None once the force is back under the limit)."""
+        ``pressing``: for a motion that started in contact, the largest contact force (N,
+        noise-free) the step may reach; the step fails, uncommanded, if the force would grow
+        past it. Returns the allowance for the next step (None once out of contact: from then
+        on the normal rules apply)."""
         q = np.asarray(q, dtype=float).copy()
         if q.shape != self.q.shape or not np.all(np.isfinite(q)):
             raise StepFailure(f"the planner produced an unusable joint vector {np.array2string(q, precision=4)[:120]}")
@@ -333,7 +337,7 @@ class Executor:
                     f"pressing further into {felt.what or 'the contact'} ({felt.magnitude:.1f} N, "
                     f"{pressing:.1f} N at the start); only motions that back away are allowed"
                 )
-            pressing = felt.magnitude if felt.touching and felt.magnitude > limit else None
+            pressing = max(felt.magnitude, limit) if felt.touching else None
         else:
             contact = self.world.contact(q)
             if contact.touching and contact.magnitude > limit:
