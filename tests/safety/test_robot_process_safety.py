@@ -16,6 +16,7 @@ import os
 import signal
 import threading
 import time
+import uuid
 
 import numpy as np
 import pytest
@@ -29,6 +30,7 @@ from shared.language.statements import Event, Move, SetMode, SetSpeed, Speed, Sp
 from shared.wire.messages import (
     CLIENT_TYPES,
     PROTOCOL_VERSION,
+    AbortFlush,
     Heartbeat,
     Hello,
     Rejected,
@@ -50,7 +52,11 @@ class Console:
     """A minimal console on ``/command``: a reader thread keeps every message, a heartbeat
     thread sends one every 0.2 s (``heartbeats=False``: a silent console)."""
 
-    def __init__(self, url: str, heartbeats: bool = True, hello: Hello | None = None) -> None:
+    def __init__(
+        self, url: str, heartbeats: bool = True, hello: Hello | bool | None = None, client_id: str | None = None,
+        reset: bool = True,
+    ) -> None:
+        self.client_id = client_id or f"safety-{uuid.uuid4().hex[:8]}"
         self.ws = connect(url + "/command", max_size=None, compression=None, open_timeout=10)
         self.messages: list = []
         self.comm = 0
@@ -60,8 +66,10 @@ class Console:
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
         if hello is not False:
-            self.send(hello or Hello(client_id="safety-test"))
+            self.send(hello or Hello(client_id=self.client_id))
             self.wait(lambda m: m.type == "welcome", what="welcome")
+            if reset and client_id is None:  # a robot shared by the tests: start from idle
+                assert self.recover(AbortFlush).applied
         if heartbeats:
             threading.Thread(target=self._beat, daemon=True).start()
 
@@ -125,9 +133,11 @@ class Console:
                          timeout=timeout, what=f"answer of communication {comm_id}")
 
 
-@pytest.fixture
-def robot(tmp_path):
-    proc = ServerProcess(tmp_path, "robot", "--seed", "1").start()
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory):
+    """One robot process for the module (it takes seconds to start); each test's console has
+    its own client id and begins with an abort, so the robot is idle and unhalted."""
+    proc = ServerProcess(tmp_path_factory.mktemp("robot"), "robot", "--seed", "1").start()
     yield proc
     proc.stop()
 
@@ -188,13 +198,6 @@ def test_nasty_statements_and_messages_are_answered_and_the_robot_lives(robot) -
     assert alive(robot)["state"] in ("idle", "fault")
 
 
-@pytest.fixture(scope="module")
-def fuzz_robot(tmp_path_factory):
-    proc = ServerProcess(tmp_path_factory.mktemp("fuzz"), "robot", "--seed", "2").start()
-    yield proc
-    proc.stop()
-
-
 numbers = st.one_of(
     st.floats(allow_nan=False, allow_infinity=False),
     st.sampled_from([1e308, -1e308, 1e-320, 0.0, 3.0e9]),
@@ -220,8 +223,8 @@ raw_texts = st.one_of(
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(items=st.lists(st.one_of(st.lists(statement_dicts, min_size=1, max_size=3), raw_texts), min_size=1, max_size=4))
-def test_fuzzed_units_and_texts_never_end_the_robot(fuzz_robot, items) -> None:
-    console = Console(fuzz_robot.url, heartbeats=False)
+def test_fuzzed_units_and_texts_never_end_the_robot(robot, items) -> None:
+    console = Console(robot.url, heartbeats=False)
     try:
         for item in items:
             if isinstance(item, list):
@@ -234,7 +237,7 @@ def test_fuzzed_units_and_texts_never_end_the_robot(fuzz_robot, items) -> None:
                 if decode_message(item, allowed=CLIENT_TYPES).type != "heartbeat":  # taken silently
                     wait_for(lambda: len(console.messages) > before, timeout=10, what=f"an answer to {item[:60]!r}")
         assert console.recover(Stop, command_id=10**6).applied  # a stop is always taken
-        alive(fuzz_robot)
+        alive(robot)
     finally:
         console.close()
 
@@ -260,9 +263,10 @@ def _stop_in_a_zero_duration_run(url: str) -> None:
         with console._lock:
             order = [m for _, m in console.messages]
         after_ack = order[order.index(ack) + 1 :]
+        ours = set(answer.numbers)
         started = [m.number for m in after_ack if m.type == "status" and m.state.value == "running"]
         assert started == [], f"{len(started)} statement(s) started after the stop's acknowledgement"
-        done = [m for m in order if m.type == "status" and m.state.value == "done"]
+        done = [m for m in order if m.type == "status" and m.state.value == "done" and m.number in ours]
         assert len(done) < 300  # the stop came in the middle of the run
         ack = console.recover(Resume)
         assert ack.applied
@@ -289,11 +293,11 @@ def test_a_stop_far_ahead_does_not_lock_out_smaller_ids(robot) -> None:
     try:
         console.answer(console.submit([LONG_MOVE]))
         console.wait(lambda m: m.type == "status" and m.state.value == "running", what="the move to start")
-        assert console.recover(Stop, command_id=1000).applied
+        assert console.recover(Stop, command_id=1000).applied  # (1 was the opening abort)
         assert alive(robot)["state"] == "stopped"
-        assert console.recover(Resume, command_id=1).applied  # the next id is still 1
+        assert console.recover(Resume, command_id=2).applied  # the next id is still 2
         wait_for(lambda: robot.health()["state"] == "running", what="running again")
-        ack = console.recover(Stop, command_id=2)
+        ack = console.recover(Stop, command_id=3)
         assert ack.applied and ack.robot.state.name == "STOPPED"
         assert robot.health()["state"] == "stopped"
         jump = console.recover(Resume, command_id=50)
@@ -347,14 +351,14 @@ def test_closing_the_socket_mid_motion_stops_the_robot_within_the_limit(robot) -
     wait_for(lambda: robot.health()["state"] == "stopped", timeout=10, interval=0.05, what="robot stopped")
     assert time.monotonic() - closed < SILENCE_BOUND_S + 0.1
     # the next console hears why in its welcome, and the robot holds until it resumes
-    again = Console(robot.url)
+    again = Console(robot.url, client_id=console.client_id)
     try:
         welcome = again.seen(lambda m: m.type == "welcome")[0]
         assert welcome.halted and welcome.halted.startswith("no message from the console")
-        assert again.seen(lambda m: m.type == "halted")
+        assert again.wait(lambda m: m.type == "halted", what="the halt, kept for the next console").cause.value == "silence"
         time.sleep(0.3)
         assert robot.health()["state"] == "stopped"
-        assert again.recover(Resume, command_id=1).applied
+        assert again.recover(Resume, command_id=console.command + 1).applied
         wait_for(lambda: robot.health()["state"] == "running", what="running after resume")
     finally:
         again.close()
@@ -385,12 +389,12 @@ def telemetry_q(robot: ServerProcess) -> tuple:
 def test_protocol_2_and_client_sent_robot_messages_are_refused(robot) -> None:
     console = Console(robot.url, heartbeats=False, hello=False)
     try:
-        console.send(Hello(client_id="future", protocol=PROTOCOL_VERSION + 1))
+        console.send(Hello(client_id=console.client_id, protocol=PROTOCOL_VERSION + 1))
         rej = console.wait(lambda m: m.type == "rejected", what="refusal of protocol 2")
         assert rej.reason is RejectReason.PROTOCOL and not rej.final
         assert rej.detail == f"protocol {PROTOCOL_VERSION + 1} not supported; this robot speaks {PROTOCOL_VERSION}"
         assert console.seen(lambda m: m.type == "welcome") == []
-        console.send(Hello(client_id="now"))
+        console.send(Hello(client_id=console.client_id))
         console.wait(lambda m: m.type == "welcome", what="welcome")
         console.send(Rejected(comm_id=1, reason=RejectReason.BUFFER_FULL, detail="forged by a client"))
         rej = console.wait(lambda m: m.type == "rejected" and m.reason is RejectReason.BAD_MESSAGE, what="refusal")
