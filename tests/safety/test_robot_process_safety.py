@@ -26,6 +26,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.parser import parse_program
 from shared.language.statements import Event, Move, SetMode, SetSpeed, Speed, SpeedUnit, TaskCall
 from shared.wire.messages import (
     CLIENT_TYPES,
@@ -402,3 +403,32 @@ def test_protocol_2_and_client_sent_robot_messages_are_refused(robot) -> None:
         alive(robot)
     finally:
         console.close()
+
+
+# -- recovery from contact (finding 13) -----------------------------------------------------------------
+
+
+def test_after_a_contact_fault_the_arm_backs_away_and_cannot_press_further(robot) -> None:
+    console = Console(robot.url)
+    try:
+        into = parse_program(
+            "MOVES TO (0, -30, 120) mm (180, 0, 0) deg IN WORK\nDRAW TO (0, -30, -20) mm IN WORK"  # gripper into plate
+        ).statements
+        first, second = console.answer(console.submit(into)).numbers
+        report = final_of(console, second, timeout=60)
+        assert report.state.value == "failed" and "unplanned contact" in report.reason
+        assert console.recover(Resume).applied
+        (down,) = console.answer(console.submit(parse_program("DRAW TO (0, -30, -30) mm IN WORK").statements)).numbers
+        assert final_of(console, down).state.value == "failed"
+        assert console.recover(Resume).applied
+        (up,) = console.answer(console.submit(parse_program("DRAW TO (0, -30, 120) mm IN WORK").statements)).numbers
+        report = final_of(console, up, timeout=60)
+        assert report.state.value == "done", report.reason
+        assert alive(robot)["state"] == "idle"
+    finally:
+        console.close()
+
+
+def final_of(console: Console, number: int, timeout: float = 30.0):
+    return console.wait(lambda m: m.type == "status" and m.number == number and m.state.final, timeout=timeout,
+                        what=f"final status of statement {number}")
