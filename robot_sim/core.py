@@ -3,12 +3,23 @@
 ``RobotCore`` takes what arrives on the command channel (text messages and binary units), feeds
 accepted statements to the executor's buffer, applies recovery commands, and turns every status
 change of the executor into a numbered status report. ``tick()`` advances the executor by one
-servo period. The asyncio service (``robot_sim.service``) calls these from its socket handlers and
-its servo loop; tests call them directly in virtual time.
+servo period and says what to send now (reports, heartbeats, a halt). The asyncio service
+(``robot_sim.service``) calls these from its socket handlers and its servo loop; tests call them
+directly in virtual time.
 
-A lost console connection leaves the robot safe and reported: the statement in progress runs to
-its end (the operator planned it with the delay in mind), nothing new starts until a console is
-back, and the state in telemetry reads DISCONNECTED meanwhile.
+Liveness (``shared.wire.liveness``): once a console has said hello, the robot sends a heartbeat
+every ``heartbeat_s`` and counts anything arriving from the console as heard. When nothing has
+arrived for longer than ``heartbeat_s + silence_limit_s`` (the console or the link frozen, or the
+connection closed and no console back within that time) and a statement runs or waits, the robot
+makes a controlled stop: STOPPED, the arm holding where it is, the buffer held, a ``halted``
+message queued for the console and ``Welcome.halted`` set until the operator's ``resume`` (or
+``skip``/``abort``). An idle robot with an empty buffer has nothing to stop; a statement that
+arrives later comes from a live console and runs. A reconnect within the limit changes nothing:
+the current statement goes on, and nothing new starts while no console is connected.
+
+Nothing that arrives can end the process: a message the core cannot handle is answered with a
+non-final ``rejected``; an error escaping a servo tick is logged with its traceback, the arm holds
+(FAULT, buffer held) and a ``halted`` message with cause ``internal_error`` is sent.
 """
 
 from __future__ import annotations
@@ -19,7 +30,23 @@ import uuid
 from pydantic import BaseModel
 
 from robot_sim.executor import Executor
-from shared.wire.messages import AbortFlush, Resume, RobotState, SkipCurrent, StatementState, Stop, Welcome
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
+from shared.wire.messages import (
+    MAX_TEXT,
+    AbortFlush,
+    HaltCause,
+    Halted,
+    Heartbeat,
+    Rejected,
+    RejectReason,
+    Resume,
+    RobotSnapshot,
+    RobotState,
+    SkipCurrent,
+    StatementState,
+    Stop,
+    Welcome,
+)
 from shared.wire.session import CommandReceiver, ReceiverStep
 from shared.wire.telemetry import TelemetryFrame, encode_frame
 
@@ -29,12 +56,24 @@ log = logging.getLogger(__name__)
 class RobotCore:
     """One robot: receiver (numbering, idempotency, replay) plus executor (motion, status)."""
 
-    def __init__(self, executor: Executor, session_id: str | None = None) -> None:
+    def __init__(
+        self,
+        executor: Executor,
+        session_id: str | None = None,
+        heartbeat_s: float = HEARTBEAT_INTERVAL_S,
+        silence_limit_s: float = DEFAULT_SILENCE_LIMIT_S,
+    ) -> None:
         self.executor = executor
-        self.receiver = CommandReceiver(session_id or uuid.uuid4().hex[:16])
+        self.receiver = CommandReceiver(session_id or uuid.uuid4().hex[:16], room=executor.room)
         self.connected = False  # a console connection is open
         self.greeted = False  # ... and has said hello: reports may flow on it
         self.frame_number = 0
+        self.heartbeat_s = heartbeat_s
+        self.silence_limit_s = silence_limit_s
+        self.watch = SilenceWatch(interval=heartbeat_s, limit=silence_limit_s)
+        self._heartbeats = 0
+        self._next_heartbeat = 0.0
+        self._unsent: list[Halted] = []  # halts made while no console was greeted
 
     # -- command channel ----------------------------------------------------------------------
     def connect(self) -> None:
@@ -48,17 +87,49 @@ class RobotCore:
         self.greeted = False
         self.receiver.disconnect()
         self.executor.hold_queue = True
-        log.warning("console connection lost: finishing the current statement, starting nothing new")
+        log.warning(
+            "console connection lost: starting nothing new; the arm stops if no console is back within %.1f s",
+            self.watch.threshold,
+        )
 
     def on_text(self, text: str | bytes) -> list[BaseModel]:
-        step = self.receiver.on_text(text)
-        if any(isinstance(r, Welcome) for r in step.replies):
-            self.greeted = True
-            self.executor.hold_queue = False
-        return self._apply(step)
+        try:
+            step = self.receiver.on_text(text)
+            if any(isinstance(r, Welcome) for r in step.replies):
+                self.greeted = True
+                self.executor.hold_queue = False
+                self._heartbeats = 0
+                self._next_heartbeat = self.executor.time + self.heartbeat_s
+                step.replies[:] = [self._welcome(r) if isinstance(r, Welcome) else r for r in step.replies]
+                step.replies += self._unsent
+                self._unsent = []
+            if self.greeted:
+                self.watch.heard(self.executor.time)
+            return self._apply(step)
+        except Exception as exc:  # noqa: BLE001 - the last-resort boundary of a message handler
+            return [self._refuse_internal("message", exc)]
 
     def on_unit(self, data: bytes) -> list[BaseModel]:
-        return self._apply(self.receiver.on_unit(data))
+        try:
+            if self.greeted:
+                self.watch.heard(self.executor.time)
+            return self._apply(self.receiver.on_unit(data))
+        except Exception as exc:  # noqa: BLE001 - the last-resort boundary of a message handler
+            return [self._refuse_internal("unit", exc)]
+
+    def _refuse_internal(self, what: str, exc: Exception) -> Rejected:
+        log.exception("internal error while handling a %s", what)
+        return Rejected(
+            reason=RejectReason.BAD_MESSAGE, final=False,
+            detail=f"internal error while handling this {what}: {type(exc).__name__}: {str(exc)[:300]}",
+        )
+
+    def _welcome(self, welcome: Welcome) -> Welcome:
+        return welcome.model_copy(update={
+            "heartbeat_s": self.heartbeat_s,
+            "silence_limit_s": self.silence_limit_s,
+            "halted": self.executor.halted[:MAX_TEXT] if self.executor.halted else None,
+        })
 
     def _apply(self, step: ReceiverStep) -> list[BaseModel]:
         out: list[BaseModel] = list(step.replies)
@@ -83,10 +154,56 @@ class RobotCore:
 
     # -- servo ----------------------------------------------------------------------------------
     def tick(self) -> list[BaseModel]:
-        """One servo period; returns the status reports to send now (in order). Reports made
-        while no greeted console is connected are kept by the receiver and replayed later."""
-        reports = self._reports(self.executor.tick())
-        return reports if self.greeted else []
+        """One servo period; returns what to send now, in order (status reports, a halt, a
+        heartbeat). Reports made while no greeted console is connected are kept by the receiver
+        and replayed later; a halt is kept and sent after the next welcome."""
+        out: list[BaseModel] = []
+        try:
+            self._check_silence(out)
+            out += self._reports(self.executor.tick())
+        except Exception as exc:  # noqa: BLE001 - the last-resort boundary of the servo loop
+            log.exception("internal error in the servo tick: holding the arm")
+            reason = f"internal error in the servo loop: {type(exc).__name__}: {str(exc)[:300]}; the arm holds"
+            try:
+                self.executor.internal_fault(reason)
+                out += self._reports(self.executor.drain_events())
+            except Exception:  # noqa: BLE001 - even the report failed: hold without it
+                log.exception("cannot report the internal error's statement")
+                self.executor.state = RobotState.FAULT
+            self._halted(out, HaltCause.INTERNAL_ERROR, reason)
+        if self.greeted and self.executor.time + 1e-9 >= self._next_heartbeat:
+            out.append(Heartbeat(seq=self._heartbeats))
+            self._heartbeats += 1
+            self._next_heartbeat += self.heartbeat_s
+        return out if self.greeted else []
+
+    def _check_silence(self, out: list[BaseModel]) -> None:
+        now = self.executor.time
+        if not (self.watch.silent(now) and self.executor.busy):
+            return
+        if self.executor.state not in (RobotState.IDLE, RobotState.RUNNING):
+            return  # already holding
+        age = self.watch.age(now) or 0.0
+        detail = (
+            f"no message from the console for {age:.1f} s (limit {_seconds(self.silence_limit_s)} s beyond the "
+            f"{_seconds(self.heartbeat_s)} s heartbeat)"
+        )
+        if self.executor.halt(detail):
+            self._halted(out, HaltCause.SILENCE, detail)
+
+    def _halted(self, out: list[BaseModel], cause: HaltCause, detail: str) -> None:
+        message = Halted(cause=cause, detail=detail[:MAX_TEXT], robot=self._snapshot())
+        if self.greeted:
+            out.append(message)
+        else:
+            self._unsent.append(message)
+
+    def _snapshot(self) -> RobotSnapshot | None:
+        try:
+            return self.executor.snapshot()
+        except Exception:  # noqa: BLE001 - a halt is reported even when the state cannot be
+            log.exception("cannot take the robot's snapshot")
+            return None
 
     def _reports(self, events) -> list[BaseModel]:
         out = []
@@ -115,3 +232,8 @@ class RobotCore:
                 wrench=snap.wrench,
             )
         )
+
+
+def _seconds(value: float) -> str:
+    """A setting in seconds as people write it: 1.0, 0.2, 0.05."""
+    return f"{value:.1f}" if round(value, 1) == value else f"{value:g}"

@@ -10,8 +10,29 @@ Every statement ends in exactly one final state: ``done``, ``failed`` (with the 
 robot's state), ``skipped`` or ``aborted``. On anything unexpected (contact that no UNTIL asked
 for, a force over the safety limit, a refused plan, a failed task step) the arm holds where it
 is, the statement fails, and the robot waits in FAULT for the operator: ``resume`` goes on with
-the next statement, ``abort`` flushes the buffer. ``stop`` freezes the arm mid-motion (STOPPED);
-``resume`` continues the same motion, ``skip`` drops it, ``abort`` drops it and the buffer.
+the next statement, ``abort`` flushes the buffer. A statement that raises anything at all while it
+is planned or stepped (a number the planner cannot handle, an IK that fails) fails the same way,
+with the error as its reason: no statement can end the process.
+
+``stop`` holds in every state, and after it nothing starts until ``resume``, ``skip`` or ``abort``:
+
+* RUNNING: the arm freezes mid-motion (STOPPED); ``resume`` continues the same motion, ``skip``
+  drops it and goes on with the next statement, ``abort`` drops it and the buffer.
+* IDLE, with or without queued statements: STOPPED, the queue held (a statement arriving after
+  the stop waits too); ``resume`` lets the queue run again. ``skip`` has no current statement to
+  drop there: it is refused and the robot stays STOPPED.
+* FAULT: stays FAULT (already holding); the stop is acknowledged as applied.
+* STOPPED: stays STOPPED (idempotent).
+
+At most one statement starts per servo tick, and only from IDLE, so even a run of zero-duration
+statements (EVENT, SPEED, MODE, grasp) cannot slip past a stop.
+
+Contact recovery: a contact the collision core finds (arm against the table or the plate) is
+never commanded: the arm holds at the last servo sample that was clear. A force contact of the
+held peg stops where the force crossed the limit; a motion that starts in contact may go on as
+long as the (noise-free) contact force stays under the larger of the limit and the force it
+started with, so backing away, sliding along or lifting off runs, and pressing further fails at
+once; clear of the contact the normal rules apply.
 
 Tasks (``shared.language.tasks``) run as generators of small guarded motions, planned by the
 same interpreter: ``insert_peg`` approaches the hole, descends until contact, searches around
@@ -24,7 +45,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from collections.abc import Generator, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -48,8 +69,8 @@ from shared.language.tasks import EXTRACT_LIFT_M, find_task, resolve_name
 from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopReason
 from shared.spatial import matrix_to_rpy
 from shared.terrain.cell import TERRAIN_OBJECT, has_terrain, load_cell_terrain
-from shared.wire.messages import ControlMode, RobotSnapshot, RobotState, StatementState
-from robot_sim.world import SimWorld
+from shared.wire.messages import MAX_TEXT, ControlMode, RobotSnapshot, RobotState, StatementState
+from robot_sim.world import PegState, SimWorld
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +88,7 @@ class ExecutorSettings(BaseModel):
     search_radius: float = Field(0.004, gt=0.0, description="how far from the first contact the search goes (m)")
     interference_zones: bool = Field(True, description="route joint moves round the arm's interference zones (seed 001)")
     collision_checks: bool = Field(True, description="stop on any contact of the arm with the cell (collision core)")
+    max_queue: int = Field(5000, ge=1, description="statements the buffer holds; a communication that would overflow it is refused")
 
 
 @dataclass(frozen=True)
@@ -84,6 +106,14 @@ class StepFailure(TeleprogError):
 
 
 _Runner = Generator[None, None, str | None]
+
+_FORCE_GROWTH_N = 1e-6
+"""Growth of a start-in-contact force that counts as pressing further (N; the force is noise-free)."""
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return text[:300]
 
 
 class Executor:
@@ -121,21 +151,47 @@ class Executor:
         self._runner: _Runner | None = None
         self.wrench = np.zeros(6)
         self.hold_queue = False  # True while no console is connected: start nothing new
+        self.halted: str | None = None  # why the robot stopped by itself (silence, internal error)
         self._events: list[ExecutorEvent] = []
 
     # -- inputs -------------------------------------------------------------------------------
     def enqueue(self, number: int, statement: Statement) -> None:
         self.queue.append((number, statement))
 
+    def room(self) -> int:
+        """Statements the buffer can still take."""
+        return max(0, self.settings.max_queue - len(self.queue))
+
+    @property
+    def busy(self) -> bool:
+        """Something runs or waits in the buffer."""
+        return self.current is not None or bool(self.queue)
+
     def stop(self) -> tuple[bool, str]:
         if self.state is RobotState.RUNNING:
             self.state = RobotState.STOPPED
             return True, "stopped: arm holding; resume, skip or abort"
-        return False, f"nothing to stop (robot {self.state.name.lower()})"
+        if self.state is RobotState.IDLE:
+            self.state = RobotState.STOPPED
+            return True, f"stopped: holding, {len(self.queue)} statement(s) held in the buffer; resume or abort"
+        if self.state is RobotState.FAULT:
+            return True, "already holding in fault; resume or abort"
+        return True, "already stopped"
+
+    def halt(self, reason: str) -> bool:
+        """A controlled stop the robot makes by itself: as ``stop``, with ``reason`` kept for
+        the console (``halted``) until the operator's recovery. False if it already held."""
+        if self.state not in (RobotState.IDLE, RobotState.RUNNING):
+            return False
+        self.state = RobotState.STOPPED
+        self.halted = reason
+        log.warning("robot halted: %s", reason)
+        return True
 
     def resume(self) -> tuple[bool, str]:
         if self.state in (RobotState.STOPPED, RobotState.FAULT):
             self.state = RobotState.RUNNING if self.current is not None else RobotState.IDLE
+            self.halted = None
             return True, "resumed"
         return False, f"nothing to resume (robot {self.state.name.lower()})"
 
@@ -145,6 +201,7 @@ class Executor:
         self._finish(StatementState.SKIPPED, "skipped by the operator")
         if self.state is RobotState.STOPPED:
             self.state = RobotState.IDLE
+            self.halted = None
         return True, f"statement {number} skipped"
 
     def abort(self) -> tuple[bool, str]:
@@ -157,14 +214,25 @@ class Executor:
             self._emit(number, StatementState.ABORTED, "flushed from the buffer by abort")
             dropped += 1
         self.state = RobotState.IDLE
+        self.halted = None
         return True, f"aborted {dropped} statement(s)"
+
+    def internal_fault(self, reason: str) -> None:
+        """The last-resort boundary caught an error outside any statement's own handling: drop
+        the current motion (its statement fails with ``reason``), hold the arm and the queue."""
+        self._runner = None
+        self.state = RobotState.FAULT
+        self.halted = reason
+        if self.current is not None:
+            number, _ = self.current
+            self.current = None
+            self._emit(number, StatementState.FAILED, reason)
 
     # -- the servo loop -----------------------------------------------------------------------
     def tick(self) -> list[ExecutorEvent]:
         """Advance one servo period; return the status changes it produced."""
         self.time += self.dt
-        startable = self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.hold_queue
-        if startable and self.current is None and self.queue:
+        if self.state is RobotState.IDLE and not self.hold_queue and self.current is None and self.queue:
             self._start(*self.queue.popleft())
         if self.state is RobotState.RUNNING and self._runner is not None:
             try:
@@ -173,6 +241,9 @@ class Executor:
                 self._finish(StatementState.DONE, done.value)
             except (StepFailure, PlanRefused, TeleprogError) as exc:
                 self._fail(str(exc))
+            except Exception as exc:  # noqa: BLE001 - no statement may end the process
+                log.exception("statement %d raised while executing", self.current_number)
+                self._fail(f"internal error while executing: {type(exc).__name__}: {_one_line(exc)}")
         self._sense()
         events, self._events = self._events, []
         return events
@@ -216,7 +287,7 @@ class Executor:
         self._finish(StatementState.FAILED, reason)
 
     def _emit(self, number: int, state: StatementState, reason: str | None) -> None:
-        self._events.append(ExecutorEvent(number, state, reason, self.snapshot()))
+        self._events.append(ExecutorEvent(number, state, reason[:MAX_TEXT] if reason else reason, self.snapshot()))
 
     def _run(self, statement: Statement) -> _Runner:
         if isinstance(statement, TaskCall):
@@ -233,31 +304,54 @@ class Executor:
     def _play(self, segment: Segment, expect_contact: bool = False) -> Generator[None, None, StopReason]:
         """Step a planned motion one servo period per tick; check for surprises on every step."""
         guarded = expect_contact or isinstance(segment.until, (UntilForce, UntilContact)) or self.mode is Mode.FORCE
+        limit = self.settings.max_force if guarded else self.settings.contact_limit
+        # a motion that starts in contact (after a contact fault the arm rests at the limit) may
+        # back away: it fails only where the contact force would grow past the limit or past
+        # what it started with, whichever is larger (noise-free: the sensor's noise at the limit
+        # must not fail a motion that lifts off)
+        start = self.world.contact(self.q, noise=False)
+        pressing = max(start.magnitude, limit) if start.touching else None
         stepper = segment.stepper(_WorldSensors(self.world), dt=self.dt, t0=self.time)
         while True:
             step = stepper.step()
-            self._move_to(step.q, guarded)
+            pressing = self._move_to(step.q, guarded, pressing)
             if step.done:
                 return step.reason or StopReason.COMPLETED
             yield
 
-    def _move_to(self, q: np.ndarray, guarded: bool) -> None:
-        """Servo to ``q``; on a force over the limit, stop where the limit was crossed and fail."""
+    def _move_to(self, q: np.ndarray, guarded: bool, pressing: float | None = None) -> float | None:
+        """Servo to ``q``; on a force over the limit, stop where the limit was crossed and fail.
+
+        ``pressing``: for a motion that started in contact, the largest contact force (N,
+        noise-free) the step may reach; the step fails, uncommanded, if the force would grow
+        past it. Returns the allowance for the next step (None once out of contact: from then
+        on the normal rules apply)."""
         q = np.asarray(q, dtype=float).copy()
+        if q.shape != self.q.shape or not np.all(np.isfinite(q)):
+            raise StepFailure(f"the planner produced an unusable joint vector {np.array2string(q, precision=4)[:120]}")
         limit = self.settings.max_force if guarded else self.settings.contact_limit
-        contact = self.world.contact(q)
-        if contact.touching and contact.magnitude > limit:
-            q = self._first_reach(self.q, q, limit)
-            self.q = q
-            self.world.follow(q)
-            felt = self.world.contact(q)
-            if guarded:
-                raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {limit:g} N ({felt.what})")
-            raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what}")
-        self.q = q
-        self.world.follow(q)
+        if pressing is not None:
+            felt = self.world.contact(q, noise=False)
+            if felt.touching and felt.magnitude > pressing + _FORCE_GROWTH_N:
+                raise StepFailure(
+                    f"pressing further into {felt.what or 'the contact'} ({felt.magnitude:.1f} N, "
+                    f"{pressing:.1f} N at the start); only motions that back away are allowed"
+                )
+            pressing = max(felt.magnitude, limit) if felt.touching else None
+        else:
+            contact = self.world.contact(q)
+            if contact.touching and contact.magnitude > limit:
+                q = self._first_reach(self.q, q, limit)
+                self.q = q
+                self.world.follow(q)
+                felt = self.world.contact(q)
+                if guarded:
+                    raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {limit:g} N ({felt.what})")
+                raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what}")
+        # the collision core and the terrain are checked before the step is commanded: the arm
+        # holds at the last clear sample, so a later motion away starts out of contact
         if self._scene is not None:
-            poses = {name: peg.world_T_peg for name, peg in self.world.pegs.items()}
+            poses = {name: peg.world_T_peg for name, peg in self._poses_after(q).items()}
             report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
             if report.colliding:
                 pair = report.pairs[0]
@@ -265,6 +359,18 @@ class Executor:
         if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
             shape = self._terrain.exact_check(q).shape
             raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
+        self.q = q
+        self.world.follow(q)
+        return pressing
+
+    def _poses_after(self, q: np.ndarray) -> dict[str, PegState]:
+        """Where the pegs would be with the arm at ``q`` (a held peg moves with the tool)."""
+        out = {}
+        for name, peg in self.world.pegs.items():
+            if peg.held and peg.tool_T_peg is not None:
+                peg = replace(peg, world_T_peg=self.world.world_T_tcp(q) @ peg.tool_T_peg)
+            out[name] = peg
+        return out
 
     def _first_reach(self, q_from: np.ndarray, q_to: np.ndarray, limit: float) -> np.ndarray:
         """Where on the servo step from ``q_from`` to ``q_to`` the force first reaches ``limit``

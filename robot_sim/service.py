@@ -5,7 +5,12 @@
   task per connection so they leave in the order the core produced them.
 * ``/telemetry``: one fixed-size binary frame (``shared.wire.telemetry``) to every subscriber at
   ``telemetry_rate``.
-* ``GET /health``: a JSON line (robot state, buffer length, statements numbered).
+* ``GET /health``: a JSON line (robot state, buffer length, statements numbered, ``halted``:
+  why the robot holds by itself, or null).
+
+Heartbeats and the silence halt are the core's (``robot_sim.core``): ``heartbeat_s`` and
+``silence_limit_s`` are settings. No message and no servo tick can end the process: each handler
+and each tick has a last-resort boundary that logs the error and keeps serving.
 
 One console connection at a time on ``/command``: a second one replaces the first (the console
 reconnecting through a restarted link must not wait for the old socket to time out).
@@ -20,7 +25,7 @@ import logging
 import time
 from collections.abc import Callable
 
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.datastructures import Headers
@@ -31,7 +36,8 @@ from robot_sim.core import RobotCore
 from robot_sim.executor import Executor, ExecutorSettings
 from robot_sim.world import SimWorld, WorldSettings
 from shared.cells.loader import DEFAULT_CELL, load_cell
-from shared.wire.messages import encode_message
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
+from shared.wire.messages import Rejected, RejectReason, encode_message
 from shared.wire.telemetry import FRAME_RATE_HZ
 
 log = logging.getLogger("teleprog.robot")
@@ -48,6 +54,11 @@ class RobotSettings(BaseSettings):
     port: int = 8766
     cell: str = str(DEFAULT_CELL)
     telemetry_rate: float = FRAME_RATE_HZ
+    heartbeat_s: float = Field(HEARTBEAT_INTERVAL_S, gt=0.0, le=60.0, description="interval of the robot's heartbeats (s)")
+    silence_limit_s: float = Field(
+        DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0,
+        description="silence from the console beyond the heartbeat interval at which the robot stops (s)",
+    )
     world: WorldSettings = WorldSettings()
     executor: ExecutorSettings = ExecutorSettings()
 
@@ -59,7 +70,11 @@ class RobotService:
         self.settings = settings
         cell = load_cell(settings.cell)
         world = SimWorld(cell, cell.robot, settings.world)
-        self.core = RobotCore(Executor(cell, world, settings.executor))
+        self.core = RobotCore(
+            Executor(cell, world, settings.executor),
+            heartbeat_s=settings.heartbeat_s,
+            silence_limit_s=settings.silence_limit_s,
+        )
         self._command: ServerConnection | None = None
         self._outbox: asyncio.Queue[BaseModel] | None = None
         self._telemetry: set[ServerConnection] = set()
@@ -93,6 +108,7 @@ class RobotService:
                     "current": ex.current_number,
                     "numbered": self.core.receiver.next_number - 1,
                     "console": self.core.connected,
+                    "halted": ex.halted,
                 }
             ).encode()
             return Response(http.HTTPStatus.OK, "OK", Headers({"Content-Type": "application/json"}), body)
@@ -122,7 +138,12 @@ class RobotService:
         writer = asyncio.create_task(self._write(ws, outbox))
         try:
             async for message in ws:
-                replies = self.core.on_unit(message) if isinstance(message, bytes) else self.core.on_text(message)
+                try:
+                    replies = self.core.on_unit(message) if isinstance(message, bytes) else self.core.on_text(message)
+                except Exception as exc:  # noqa: BLE001 - the core has its own boundary; this is the last one
+                    log.exception("internal error while handling a message")
+                    replies = [Rejected(reason=RejectReason.BAD_MESSAGE, final=False,
+                                        detail=f"internal error: {type(exc).__name__}")]
                 for r in replies:
                     outbox.put_nowait(r)
         except ConnectionClosed:
@@ -138,7 +159,12 @@ class RobotService:
         try:
             while True:
                 message = await outbox.get()
-                await ws.send(encode_message(message))
+                try:
+                    text = encode_message(message)
+                except Exception:  # noqa: BLE001 - one message that cannot be encoded is dropped, logged
+                    log.exception("cannot encode %s", type(message).__name__)
+                    continue
+                await ws.send(text)
         except (ConnectionClosed, asyncio.CancelledError):
             return
 
@@ -149,7 +175,12 @@ class RobotService:
         next_t = time.monotonic()
         while True:
             next_t += dt
-            for report in self.core.tick():
+            try:
+                out = self.core.tick()
+            except Exception:  # noqa: BLE001 - the core has its own boundary; this is the last one
+                log.exception("internal error in the servo tick")
+                out = []
+            for report in out:
                 if self._outbox is not None:
                     self._outbox.put_nowait(report)
             now = time.monotonic()
@@ -165,7 +196,12 @@ class RobotService:
         next_t = time.monotonic()
         while True:
             next_t += period
-            frame = self.core.telemetry()
+            try:
+                frame = self.core.telemetry()
+            except Exception:  # noqa: BLE001 - a frame that cannot be made is skipped, logged
+                log.exception("cannot make a telemetry frame")
+                await asyncio.sleep(period)
+                continue
             for ws in list(self._telemetry):
                 try:
                     await ws.send(frame)

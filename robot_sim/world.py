@@ -239,15 +239,16 @@ class SimWorld:
                 return hole
         return None
 
-    def contact(self, q: np.ndarray) -> Contact:
-        """Force on the tool for the commanded joint vector ``q`` (noise included).
+    def contact(self, q: np.ndarray, noise: bool = True) -> Contact:
+        """Force on the tool for the commanded joint vector ``q`` (sensor noise included unless
+        ``noise`` is False: the contact itself, for comparing two poses).
 
         Only the held peg touches in this model (with the gripper empty the arm is in free space
         unless the collision core says otherwise, which the executor checks separately).
         """
         held = self.held_peg()
         if held is None:
-            return Contact(self._noise(), touching=False)
+            return Contact(self._noise() if noise else np.zeros(3), touching=False)
         name, peg = held
         world_T_peg = self.world_T_tcp(q) @ peg.tool_T_peg
         foot = world_T_peg[:3, 3] - world_T_peg[:3, 2] * peg.half_size[2]
@@ -280,7 +281,7 @@ class SimWorld:
                 force[2] += k * (surface - foot[2])
                 what = "plate top" if surface == self.plate_top_z else "table top"
         touching = bool(np.linalg.norm(force) > 0.0)
-        return Contact(force + self._noise(), touching=touching, what=what)
+        return Contact(force + self._noise() if noise else force, touching=touching, what=what)
 
     def _stuck_foot_z(self, name: str, peg: PegState) -> float:
         if name not in self._stuck_z:

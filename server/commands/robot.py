@@ -13,7 +13,15 @@ def _cmd_robot(args: argparse.Namespace) -> int:
     from shared.cells.loader import load_cell
 
     settings = RobotSettings()
-    overrides: dict[str, object] = {k: v for k, v in (("host", args.host), ("port", args.port), ("cell", args.cell)) if v is not None}
+    overrides: dict[str, object] = {
+        k: v
+        for k, v in (
+            ("host", args.host), ("port", args.port), ("cell", args.cell),
+            ("heartbeat_s", args.heartbeat_s), ("silence_limit_s", args.silence_limit_s),
+        )
+        if v is not None
+    }
+    executor = {k: v for k, v in (("max_queue", args.max_queue),) if v is not None}
     world = {
         k: v
         for k, v in (
@@ -24,7 +32,11 @@ def _cmd_robot(args: argparse.Namespace) -> int:
         )
         if v is not None
     }
-    settings = settings.model_copy(update={**overrides, "world": settings.world.model_copy(update=world)})
+    settings = settings.model_copy(update={
+        **overrides,
+        "world": settings.world.model_copy(update=world),
+        "executor": settings.executor.model_copy(update=executor),
+    })
     settings = RobotSettings.model_validate(settings.model_dump())  # validate the overrides too
     load_cell(settings.cell)  # a broken cell is a one-line error before anything listens
 
@@ -57,5 +69,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--object-offset-mm", type=float, default=None, help="largest xy offset of pegs and holes from the model")
     p.add_argument("--force-noise-n", type=float, default=None, help="std of force-sensor noise in N")
     p.add_argument("--stick-probability", type=float, default=None, help="chance the peg sticks in its hole")
+    p.add_argument("--heartbeat-s", type=float, default=None, help="interval of the robot's heartbeats in s (default 0.2)")
+    p.add_argument("--silence-limit-s", type=float, default=None,
+                   help="silence from the console beyond the heartbeat at which the robot stops, in s (default 1)")
+    p.add_argument("--max-queue", type=int, default=None, help="statements the robot's buffer holds (default 5000)")
     p.add_argument("--json", action="store_true", help="print the listening address as JSON")
     p.set_defaults(handler=_cmd_robot)

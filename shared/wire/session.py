@@ -12,16 +12,20 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from pydantic import BaseModel
 
 from shared.language.statements import Statement
 from shared.wire.messages import (
+    CLIENT_TYPES,
     FINAL_STATES,
+    PROTOCOL_VERSION,
     AbortFlush,
     Accepted,
     Answer,
+    Heartbeat,
     Hello,
     RecoveryAck,
     Recovery,
@@ -63,6 +67,7 @@ class _ClientState:
     answers: OrderedDict[int, Answer] = field(default_factory=OrderedDict)
     last_applied_command: int = 0
     acks: OrderedDict[int, RecoveryAck] = field(default_factory=OrderedDict)
+    stops: OrderedDict[int, None] = field(default_factory=OrderedDict)  # stop ids applied (any id)
 
 
 class CommandReceiver:
@@ -70,28 +75,51 @@ class CommandReceiver:
 
     Send ``replies`` (and the reports from ``report``) on the current connection in the order they
     were produced, through one writer: the client relies on report order.
+
+    ``room`` (optional) says how many statements the robot's buffer can take now: a communication
+    with more is answered ``buffer_full`` (final: nothing of it runs).
+
+    Recovery command ids: a ``stop`` is passed on whatever its id, and even before ``hello``, so
+    no id can lock it out; a repeat of a stop id already applied is acknowledged again, not
+    applied again, and a stop advances ``last_applied_command`` only when its id is the next one.
+    ``resume``, ``skip`` and ``abort`` must carry the next id: a repeat (id not above the last
+    applied) is acknowledged again, an id that jumps ahead is refused and changes nothing.
     """
 
-    def __init__(self, session_id: str, first_number: int = 1, max_comm_statements: int = MAX_COMM_STATEMENTS) -> None:
+    def __init__(
+        self,
+        session_id: str,
+        first_number: int = 1,
+        max_comm_statements: int = MAX_COMM_STATEMENTS,
+        room: Callable[[], int] | None = None,
+    ) -> None:
         self.session_id = session_id
         self.next_number = first_number
         self.max_comm_statements = max_comm_statements
+        self.room = room
         self.reports: list[StatusReport] = []
         self._clients: dict[str, _ClientState] = {}
         self._client: str | None = None  # client bound to the current connection
 
     # -- connection ---------------------------------------------------------------------------
 
+    @property
+    def greeted(self) -> bool:
+        """A client has said hello on the current connection."""
+        return self._client is not None
+
     def disconnect(self) -> None:
         """The connection ended; state is kept for the client's return."""
         self._client = None
 
     def on_text(self, text: str | bytes) -> ReceiverStep:
-        msg = decode_message(text)
-        if isinstance(msg, Rejected):
+        msg = decode_message(text, allowed=CLIENT_TYPES)
+        if isinstance(msg, Rejected):  # the robot's own refusal of the message (never an echo)
             return ReceiverStep(replies=[msg.model_copy(update={"final": False})])
         if isinstance(msg, Hello):
             return self._hello(msg)
+        if isinstance(msg, Heartbeat):
+            return ReceiverStep()  # its arrival is all it says (the caller counts it as heard)
         if isinstance(msg, (Stop, Resume, SkipCurrent, AbortFlush)):
             return self._recovery(msg)
         return ReceiverStep(replies=[Rejected(
@@ -99,6 +127,16 @@ class CommandReceiver:
         )])
 
     def _hello(self, hello: Hello) -> ReceiverStep:
+        if hello.protocol != PROTOCOL_VERSION:
+            return ReceiverStep(replies=[Rejected(
+                reason=RejectReason.PROTOCOL, final=False,
+                detail=f"protocol {hello.protocol} not supported; this robot speaks {PROTOCOL_VERSION}",
+            )])
+        if hello.session_id is not None and hello.session_id != self.session_id:
+            # the client's counters belong to an earlier robot process: it has seen nothing of ours
+            log.info("hello of %s from robot session %s (this is %s): replaying everything",
+                     hello.client_id, hello.session_id, self.session_id)
+            hello = hello.model_copy(update={"last_answered_comm": 0, "last_report_seq": 0, "last_acked_command": 0})
         client = self._clients.setdefault(hello.client_id, _ClientState())
         self._client = hello.client_id
         step = ReceiverStep()
@@ -157,6 +195,12 @@ class CommandReceiver:
         if not unit.end:
             return ReceiverStep()
         statements = [s for u in client.units for s in u.statements]
+        room = self.room() if self.room is not None else None
+        if room is not None and len(statements) > room:
+            return self._answer(client, Rejected(
+                comm_id=comm_id, seq=unit.seq, reason=RejectReason.BUFFER_FULL,
+                detail=f"the robot's buffer has room for {room} statement(s); this communication has {len(statements)}",
+            ))
         numbers = tuple(range(self.next_number, self.next_number + len(statements)))
         self.next_number += len(statements)
         step = self._answer(client, Accepted(comm_id=comm_id, numbers=numbers))
@@ -179,14 +223,44 @@ class CommandReceiver:
     # -- recovery and status -------------------------------------------------------------------
 
     def _recovery(self, cmd: Recovery) -> ReceiverStep:
+        if isinstance(cmd, Stop):
+            return self._stop(cmd)
         if self._client is None:
             return ReceiverStep(replies=[Rejected(reason=RejectReason.NO_SESSION, detail="send hello before commands", final=False)])
         client = self._clients[self._client]
         if cmd.command_id <= client.last_applied_command:
             ack = client.acks.get(cmd.command_id)
             return ReceiverStep(replies=[ack] if ack is not None else [])
-        client.last_applied_command = cmd.command_id
+        if cmd.command_id > client.last_applied_command + 1:
+            return ReceiverStep(replies=[RecoveryAck(
+                command_id=cmd.command_id, applied=False,
+                detail=f"{cmd.type} command {cmd.command_id} jumps ahead: the next command id is "
+                f"{client.last_applied_command + 1}; nothing done",
+            )])
+        self._advance(client, cmd.command_id)
         return ReceiverStep(recoveries=[cmd])
+
+    def _stop(self, cmd: Stop) -> ReceiverStep:
+        """A stop is never locked out: applied whatever its id, before hello too."""
+        if self._client is None:
+            return ReceiverStep(recoveries=[cmd])
+        client = self._clients[self._client]
+        if cmd.command_id in client.stops:
+            ack = client.acks.get(cmd.command_id)
+            return ReceiverStep(replies=[ack] if ack is not None else [])
+        client.stops[cmd.command_id] = None
+        while len(client.stops) > KEPT_ANSWERS:
+            client.stops.popitem(last=False)
+        if cmd.command_id == client.last_applied_command + 1:
+            self._advance(client, cmd.command_id)
+        return ReceiverStep(recoveries=[cmd])
+
+    @staticmethod
+    def _advance(client: _ClientState, command_id: int) -> None:
+        """``command_id`` is applied; so are the stops already applied right after it."""
+        client.last_applied_command = command_id
+        while client.last_applied_command + 1 in client.stops:
+            client.last_applied_command += 1
 
     def ack(self, cmd: Recovery, applied: bool, detail: str = "", robot: RobotSnapshot | None = None) -> RecoveryAck:
         """Record and return the acknowledgement of a recovery command the robot has handled."""

@@ -25,8 +25,11 @@ from shared.language.parser import parse_program
 from shared.language.statements import Move
 from shared.link.core import Direction, LinkCore, LinkFault, LinkParams
 from shared.paths import ASSETS_DIR
+from shared.wire.liveness import HEARTBEAT_INTERVAL_S
 from shared.wire.messages import (
+    Heartbeat,
     Rejected,
+    Resume,
     RobotState,
     StatementState,
     Stop,
@@ -42,7 +45,10 @@ FINAL = {StatementState.DONE, StatementState.FAILED, StatementState.SKIPPED, Sta
 
 
 class VirtualSession:
-    """Console sender, link and robot on one virtual clock; the link can be cut and reopened."""
+    """Console sender, link and robot on one virtual clock; the link can be cut and reopened.
+
+    The console sends a heartbeat every ``HEARTBEAT_INTERVAL_S`` while the link is open (as the
+    real console does), so the robot's silence watch hears it through the delay."""
 
     def __init__(self, delay: float = 3.0, **world: object) -> None:
         self.robot = RobotCore(Executor(CELL, SimWorld(CELL, CELL.robot, WorldSettings(**world))), session_id="virtual")
@@ -51,6 +57,9 @@ class VirtualSession:
         self.now = 0.0
         self.link: LinkCore | None = None
         self.received: list = []  # every message the console got, in order
+        self.heartbeats = True
+        self._next_heartbeat = 0.0
+        self._heartbeat_seq = 0
         self.open()
 
     # -- connection -------------------------------------------------------------------------
@@ -90,6 +99,10 @@ class VirtualSession:
 
     def step(self) -> None:
         self.now += self.robot.executor.dt
+        if self.heartbeats and self.link is not None and self.now >= self._next_heartbeat:
+            self._up(encode_message(Heartbeat(seq=self._heartbeat_seq)))
+            self._heartbeat_seq += 1
+            self._next_heartbeat = self.now + HEARTBEAT_INTERVAL_S
         if self.link is not None:
             for item in self.link.poll(self.now):
                 if isinstance(item, LinkFault):
@@ -147,9 +160,15 @@ def test_cutting_the_link_mid_program_loses_nothing_and_runs_nothing_twice(cut_a
     s.submit(PEG_TRANSFER)
     s.run(cut_at)
     s.cut()
-    s.run(2.0)  # the robot finishes the current statement and starts nothing new
+    s.run(2.0)  # the robot starts nothing new; past the silence limit it stops and holds
     assert s.robot.executor.hold_queue
     s.open()
+    s.run(2 * s.params.delay_s + 0.1)  # the welcome is back
+    welcome = [m for m in s.received if m.type == "welcome"][-1]
+    if s.robot.executor.busy and cut_at > s.params.delay_s:  # it had statements: silence halted them
+        assert s.robot.executor.state is RobotState.STOPPED and welcome.halted
+        assert any(m.type == "halted" and m.cause.value == "silence" for m in s.received)
+        s.command(Resume)  # the operator's recovery
     numbers = tuple(range(1, len(PEG_TRANSFER) + 1))
     s.run_until_final(numbers)
     assert all(s.sender.final_state(n) is StatementState.DONE for n in numbers), s.sender.statuses

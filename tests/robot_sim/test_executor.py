@@ -160,9 +160,10 @@ def test_the_rover_stops_where_its_arm_meets_the_terrain() -> None:
     done = finals(ex.run_until_idle())
     assert done[1].state is StatementState.FAILED and "touches the terrain" in done[1].reason
     assert ex.state is RobotState.FAULT
-    # it stopped at the first servo step in contact: short of the goal, just touching
+    # it holds at the last servo step clear of the ground: short of the goal, just not touching
+    # (the step into contact is never commanded, so a motion away starts clear)
     from shared.terrain.cell import load_cell_terrain
 
     checker = load_cell_terrain(rover).checker
-    assert checker.min_distance(ex.q) <= 0.0
+    assert 0.0 < checker.min_distance(ex.q) < 0.005
     assert np.max(np.abs(ex.q - np.radians([-69.5, 3.0, -43.0]))) > np.radians(0.5)
