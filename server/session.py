@@ -101,13 +101,16 @@ from shared.collision import SceneModel, zone
 from shared.errors import InputError, TeleprogError, UnknownNameError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
-from shared.language.statements import Mode, SetMode, Speed, Statement, TaskCall, Until, is_action, program_to_json
+from shared.language.statements import (
+    Draw, Frame, Mode, SetMode, Speed, SpeedUnit, Statement, TaskCall, Until, is_action, program_to_json,
+)
 from shared.motion import Plan, plan_program
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import ControlMode, GeneratorSettings, ProgramGenerator, RobotSample
 from shared.robots.jog import JogFrames, JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
 from shared.spatial import invert, matrix_to_rpy, pose_to_transform
 from shared.vision.pose import locate_object as locate_object_pose
+from shared.wire.messages import RobotState
 
 log = logging.getLogger(__name__)
 
@@ -160,6 +163,10 @@ class SessionSettings:
     predicted_points: int = 60
     gripper_closed_below: float = 0.03
     """m: a reported gripper opening below this counts as holding."""
+    back_away_distance: float = 0.03
+    """m: how far "back away" moves the tool out of a contact."""
+    back_away_speed: float = 0.01
+    """m/s: the tool speed of a back-away motion."""
     generator: GeneratorSettings = field(default_factory=GeneratorSettings)
 
 
@@ -931,10 +938,43 @@ class Session:
         view = self.program_view()
         self._emit([ProgramChanged(program=view), *notices])
         if stream:
+            hazard = self._streaming_hazard()
+            if hazard is not None:
+                self._emit([Notice(level="warning", message=(
+                    f"held back, not sent to the robot: {hazard}; the program keeps it (undo, edit or delete it)"))])
+                return
             try:
                 self.submit(0, self.editor_state.empty_index, client=self._holder_caller())
             except TeleprogError as exc:
                 self._emit([Notice(level="warning", message=f"streaming refused: {exc}")])
+
+    def _streaming_hazard(self) -> str | None:
+        """Why the program may not stream to the robot now, or None: its planned path from
+        where the sent statements end touches something in the cell's collision model, leaves a
+        joint range, or cannot be planned (:meth:`_arm_pair` says which touching pairs count)."""
+        with self._lock:
+            statements = list(self._editor.state.statements)
+            held = self._held
+            try:
+                p = self._plan_preview(statements, 0, len(statements))
+            except TeleprogError as exc:
+                return f"the program cannot be planned: {exc}"
+        if p.refusal is not None:
+            return p.refusal
+        for w in p.warnings:
+            if w.kind == "joint_limit" or (w.kind == "collision" and self._arm_pair(w.bodies, held)):
+                return w.message.replace(": ", f" ({format_statement(statements[w.index])}): ", 1)
+        return None
+
+    def _arm_pair(self, bodies: tuple[str, str] | None, held: str | None) -> bool:
+        """Whether a touching pair involves the arm (a link; the terrain pairs name one too).
+        Two objects touching each other (a peg the robot reported a little off its hole) are
+        not the motion's doing; the held object rides with the gripper, which the plan does
+        not model, so its pairs do not count either."""
+        if bodies is None or held in bodies:
+            return False
+        names = set(self._scene.body_names)
+        return any(b in names and self._scene.body(b).kind == "link" for b in bodies)
 
     # =========================================================================== preview
     def begin_preview(self, start: int, stop: int, *, client: str | None = None) -> PreviewView:
@@ -1543,6 +1583,95 @@ class Session:
     def abort(self, *, client: str | None = None) -> LinkView:
         """Flush every statement the robot has not finished."""
         return self._recover("abort", lambda r: r.abort(), client)
+
+    def back_away_motion(self) -> Draw:
+        """The motion that backs the remote arm out of a contact fault: the tool point
+        ``back_away_distance`` straight back along the way the failed statement was pressing
+        (its planned path continued from where the robot stopped), or straight up when that way
+        is not known, at ``back_away_speed``, orientation kept. Refused unless the robot reports
+        a fault, or when neither motion can be planned from where it stopped."""
+        with self._lock:
+            frame = self._telemetry
+            if frame is None:
+                raise ConflictError("no telemetry from the robot yet: back away needs to know where it stopped")
+            if frame.state is not RobotState.FAULT:
+                raise ConflictError(f"back away is for a robot in fault after a contact; the robot is {frame.state.name.lower()}")
+            q = self.robot.as_q(np.array(frame.q, dtype=float))
+            failed = max((s for s in self._sent if s.status is SentStatus.FAILED),
+                         key=lambda s: s.finished_at or 0.0, default=None)
+        world_p = self._remote_tcp(q)[:3, 3]
+        approach = self._approach_direction(failed.statement, q) if failed is not None else None
+        ways = ([-approach] if approach is not None else []) + [np.array([0.0, 0.0, 1.0])]
+        speed = Speed(value=self.settings.back_away_speed, unit=SpeedUnit.M_PER_S)
+        refusal = ""
+        for way in ways:
+            target = world_p + self.settings.back_away_distance * way
+            motion = Draw(position=tuple(float(v) for v in target), frame=Frame.WORLD, speed=speed)
+            plan = plan_program([motion], self.robot, self.cell, start_q=q)
+            if plan.refusal is None:
+                return motion
+            refusal = str(plan.refusal)
+        raise ConflictError(f"cannot back away from where the robot stopped: {refusal}")
+
+    def _approach_direction(self, statement: Statement, q: np.ndarray) -> np.ndarray | None:
+        """Unit vector (world) the tool point moves along when ``statement`` goes on from ``q``,
+        or None (it would not move the tool, or cannot be planned)."""
+        try:
+            plan = plan_program([statement], self.robot, self.cell, start_q=q)
+        except TeleprogError:
+            return None
+        if plan.refusal is not None or plan.duration <= 0:
+            return None
+        qs = plan.sample(np.array([0.0, min(0.1, plan.duration)])).q
+        step = self._remote_tcp(qs[1])[:3, 3] - self._remote_tcp(qs[0])[:3, 3]
+        norm = float(np.linalg.norm(step))
+        return step / norm if norm > 1e-6 else None
+
+    def back_away(self, *, client: str | None = None) -> SentListView:
+        """After a contact fault, one click: abort what the robot has not finished (it waits in
+        fault until then), then send :meth:`back_away_motion`. The motion joins the sent list,
+        not the program; the program's start is unknown until a re-sync."""
+        motion = self.back_away_motion()
+        with self._lock:
+            self._check_control(client)
+            if self._client is None or self._loop is None:
+                raise NotConnectedError("no robot is configured for this console (started with --no-robot)")
+            outgoing: list[Statement] = [motion]
+            if self._robot_mode is Mode.FORCE:
+                outgoing.insert(0, SetMode(mode=Mode.POSITION))
+                self._robot_mode = Mode.POSITION
+            self._comm_counter += 1
+            comm = self._comm_counter
+            now = time.time()
+            for st in outgoing:
+                self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, comm))
+            self._start_unknown = True  # the program goes on from where the robot ends: re-sync
+            self._recovery_counter += 1
+            key = self._recovery_counter
+            self._recovery_pending[key] = "abort before back away"
+            robot, loop = self._client, self._loop
+
+        async def run() -> None:
+            try:
+                await robot.abort()
+            except Exception as exc:  # noqa: BLE001 - shown, and the motion is not sent
+                with self._lock:
+                    self._recovery_pending.pop(key, None)
+                    for s in self._sent:
+                        if s.comm == comm:
+                            s.status, s.reason, s.finished_at = SentStatus.REJECTED, f"abort failed: {exc}", time.time()
+                self._emit([SentChanged(sent=self.sent_view()), Notice(level="error", message=f"back away not sent: abort failed: {exc}")])
+                return
+            with self._lock:
+                self._recovery_pending.pop(key, None)
+            self._emit([LinkChanged(link=self.link_view())])
+            await self._send(robot, comm, outgoing)
+
+        asyncio.run_coroutine_threadsafe(run(), loop)
+        view = self.sent_view()
+        self._emit([SentChanged(sent=view), LinkChanged(link=self.link_view()),
+                    Notice(level="info", message=f"backing away: abort, then {format_statement(motion)}")])
+        return view
 
     def _recover(self, what: str, call, client: str | None) -> LinkView:
         with self._lock:

@@ -96,13 +96,13 @@ def add_viser_routes(
     ``viser_port`` is the port viser listens on (127.0.0.1), or a callable returning it when the
     WebSocket connects (it may raise while viser is not running yet: the connection is refused).
     ``send_intervals_ms``: the served page's senders re-paced, by name (``{"gizmo": 10}``:
-    ``server.viser_page.SENDERS``); empty or None keeps viser's page as built.
+    ``server.viser_page.SENDERS``); empty or None keeps viser's pacing. Number boxes of the
+    served page commit on Enter or on leaving the box (``server.viser_page.NUMBER_COMMIT_JS``).
     """
     prefix = "/" + prefix.strip("/")
     build_dir = CLIENT_BUILD_DIR
-    index_bytes = (build_dir / "index.html").read_bytes()
-    if send_intervals_ms:
-        index_bytes = served_page(index_bytes.decode("utf-8"), send_intervals_ms).encode("utf-8")
+    # number boxes commit on Enter or on leaving them (server.viser_page), always; senders re-paced on request
+    index_bytes = served_page((build_dir / "index.html").read_text("utf-8"), send_intervals_ms).encode("utf-8")
     index_gzip = gzip.compress(index_bytes, compresslevel=6)
 
     def resolve_port() -> int:

@@ -15,8 +15,19 @@ attribute in a base-88 alphabet, with ``data-ss`` and ``data-cs`` giving the sty
 script's decompressed sizes. :func:`paced_page` decodes the frame, changes the interval
 literal of each named sender (``SENDERS``: the gizmo's, in its case of the scene-node factory)
 and encodes the page again; the loader and everything else are untouched. If an interval is not
-found exactly once (another viser build), :func:`served_page` logs a warning and serves viser's
-page unchanged.
+found exactly once (another viser build), :func:`served_page` logs a warning and serves the page
+unpaced.
+
+Number boxes commit on Enter or on leaving the box, never per keystroke. viser's number inputs
+(``add_number``, a slider's number box, vector fields: all Mantine ``NumberInput``) send their
+value on every change, so typing ``-36`` into a joint's box sent ``-3`` first and the arm went
+there. :data:`NUMBER_COMMIT_JS`, a script the served page runs before viser's, stops the
+keystroke ``input`` events of those boxes in the capture phase at ``window``, before React's
+listener on the page's root sees them: React keeps the last committed value, the box shows what
+is typed. Enter, leaving the box (the browser's own ``change`` event) or an arrow key with
+something typed dispatch one ``change`` event, which React's change handling reads as the
+value's one edit; Escape puts the committed value back. The slider's track is a separate
+control (pointer events): a drag still moves the joint as it goes.
 """
 
 from __future__ import annotations
@@ -47,6 +58,48 @@ SENDERS: dict[str, re.Pattern[str]] = {
     ),
 }
 _PAYLOAD = re.compile(r'data-p="([^"]*)"')
+
+#: Number boxes commit on Enter, on leaving the box, or on an arrow key with text typed, never
+#: per keystroke (see the module docstring). ``input`` events of a box are held back from React;
+#: one ``change`` event commits the text typed since the last commit.
+NUMBER_COMMIT_JS = """(() => {
+  const BOX = ".mantine-NumberInput-input";
+  const typed = new WeakSet();      // boxes holding text not committed yet
+  const committed = new WeakMap();  // box -> its text at the last commit (for Escape)
+  const isBox = (el) => el instanceof HTMLInputElement && el.matches(BOX);
+  const commit = (el) => {
+    if (!typed.has(el)) return;
+    typed.delete(el);
+    committed.set(el, el.value);
+    el.dispatchEvent(new Event("change", { bubbles: true }));
+  };
+  window.addEventListener("focusin", (e) => { if (isBox(e.target)) committed.set(e.target, e.target.value); }, true);
+  window.addEventListener("input", (e) => {
+    if (!isBox(e.target)) return;
+    typed.add(e.target);
+    e.stopImmediatePropagation();
+  }, true);
+  window.addEventListener("change", (e) => {
+    if (isBox(e.target)) { typed.delete(e.target); committed.set(e.target, e.target.value); }
+  }, true);
+  window.addEventListener("keydown", (e) => {
+    const el = e.target;
+    if (!isBox(el)) return;
+    if (e.key === "Enter") {
+      commit(el);
+    } else if (e.key === "Escape" && typed.has(el)) {
+      typed.delete(el);
+      el.value = committed.has(el) ? committed.get(el) : el.value;
+      e.stopImmediatePropagation();
+    } else if ((e.key === "ArrowUp" || e.key === "ArrowDown") && typed.has(el)) {
+      e.preventDefault();
+      e.stopImmediatePropagation();
+      commit(el);
+    }
+  }, true);
+  window.addEventListener("focusout", (e) => { if (isBox(e.target)) commit(e.target); }, true);
+})();"""
+_COMMIT_TAG = f'<script data-teleprog="number-commit">{NUMBER_COMMIT_JS}</script>'
 
 
 class PagePatchError(ValueError):
@@ -163,13 +216,20 @@ def paced_page(html: str, intervals_ms: Mapping[str, int]) -> str:
     return pack(html, PageBundle(bundle.style, script))
 
 
-def served_page(html: str, intervals_ms: Mapping[str, int]) -> str:
-    """The page to serve: ``html`` paced by ``intervals_ms``, or unchanged when that is empty or
-    the page cannot be paced (logged)."""
-    if not intervals_ms:
-        return html
-    try:
-        return paced_page(html, intervals_ms)
-    except (PagePatchError, zstandard.ZstdError, UnicodeDecodeError) as exc:
-        log.warning("serving viser's page unchanged: drags stay at viser's own 20 updates a second (%s)", exc)
-        return html
+def with_number_commit(html: str) -> str:
+    """``html`` with :data:`NUMBER_COMMIT_JS` run first thing in its head (before viser's script)."""
+    head = re.search(r"<head[^>]*>", html)
+    if head is None:
+        raise PagePatchError("the page has no <head> to put the number-commit script in")
+    return html[: head.end()] + _COMMIT_TAG + html[head.end() :]
+
+
+def served_page(html: str, intervals_ms: Mapping[str, int] | None = None) -> str:
+    """The page to serve: ``html`` with number boxes that commit on Enter or leaving the box,
+    paced by ``intervals_ms`` (unpaced when that is empty or the page cannot be paced: logged)."""
+    if intervals_ms:
+        try:
+            html = paced_page(html, intervals_ms)
+        except (PagePatchError, zstandard.ZstdError, UnicodeDecodeError) as exc:
+            log.warning("serving viser's page unpaced: drags stay at viser's own 20 updates a second (%s)", exc)
+    return with_number_commit(html)

@@ -1,9 +1,10 @@
 """The whole operator console in one call: ``build_console(server, session)``.
 
 Creates the scene, the ghost and overlays, and the panels, and routes the session's typed
-events to them. Layout of the control panel (docked right): the status bar first (STOP, link,
-regime, display mode, divergence, notices: always in view), then tabs Drive, Program, Preview,
-Submit. What the 3D view shows depends on the display mode (thesis 4.3.7):
+events to them. Layout, docked right: a header panel on top that never scrolls away (STOP, the
+robot's state, the STOP acknowledgement, back away, then the status bar: recovery, link, regime,
+display mode, divergence, notices), and below it the control panel with tabs Drive, Program,
+Preview, Submit. What the 3D view shows depends on the display mode (thesis 4.3.7):
 
 * teleprogramming: the virtual arm where the operator drives it, the remote arm as a ghost
   with its age, the predicted path of sent statements, red triangles while driving;
@@ -52,6 +53,7 @@ from webui.preview_panel import PreviewPanel
 from webui.program_panel import ProgramPanel
 from webui.scene import CellScene
 from webui.status_bar import StatusBar
+from webui.stop_header import StopHeader
 from webui.terrain_overlay import TerrainOverlay
 from webui.terrain_panel import TerrainPanel
 
@@ -79,6 +81,7 @@ class Console:
     monitor: MonitorPanel
     terrain: TerrainPanel | None = None
     terrain_overlay: TerrainOverlay | None = None
+    stop: StopHeader | None = None
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
@@ -118,6 +121,8 @@ class Console:
             self.monitor.show(event.sent)
         elif isinstance(event, LinkChanged):
             self.status.show_link(event.link)
+            if self.stop is not None:
+                self.stop.show_link(event.link)
             self._draw_ghost()  # the age grows between frames
             self.monitor.tick()
         elif isinstance(event, RemoteArmChanged):
@@ -149,6 +154,8 @@ class Console:
                 self.terrain.show_placement(event.placement)
                 self.terrain_overlay.show_target(event.placement)
         elif isinstance(event, Notice):
+            if self.stop is not None:
+                self.stop.show_notice(event)
             self.status.show_notice_event(event)
 
     # -- drawing by display mode --------------------------------------------------------------
@@ -217,7 +224,11 @@ def build_console(server: viser.ViserServer, session) -> Console:
     collision = CollisionOverlay(server, scene.body_meshes, scene.body_nodes, scene.tcp_node)
     holder: dict[str, StatusBar] = {}
     actions = Actions(lambda level, message, rule: holder["status"].show_notice(level, message, rule))
-    status = holder["status"] = StatusBar(server, session, actions)
+    # the header: a panel of its own docked above the control panel, so STOP never scrolls away
+    header = server.gui.add_panel()
+    with header.add_tab("Robot", viser.Icon.ROBOT):
+        stop = StopHeader(server, session, actions)
+        status = holder["status"] = StatusBar(server, session, actions)
     tabs = server.gui.add_tab_group()
     with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
         drive = DrivePanel(server, session, scene, actions)
@@ -235,7 +246,7 @@ def build_console(server: viser.ViserServer, session) -> Console:
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
     console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
-                      terrain, overlay)
+                      terrain, overlay, stop)
     # first picture from the session's current state, then follow its events
     snap = session.snapshot()
     for event in (
@@ -254,6 +265,7 @@ def build_console(server: viser.ViserServer, session) -> Console:
     try:
         server.gui.main_panel.dock_right()
         server.gui.main_panel.set_width(PANEL_WIDTH)
+        header.dock_above(server.gui.main_panel)
     except Exception:  # noqa: BLE001 - placement is cosmetic; never fail the console for it
         log.exception("could not dock the control panel")
     return console

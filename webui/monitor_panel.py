@@ -1,6 +1,6 @@
 """The submit-and-monitor panel (thesis 4.3.6, 4.4): submit a range of the program, then follow
 each sent statement by its robot number and status (received, running, done, failed) with its
-timing. STOP and recovery live in the status bar so they stay in view on every tab.
+timing. STOP and recovery live in the header (webui.stop_header) so they stay in view on every tab.
 """
 
 from __future__ import annotations

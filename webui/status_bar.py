@@ -1,5 +1,6 @@
-"""The top of the control panel, always in view: STOP, the link, the regime, the display mode,
-a divergence warning with its re-sync, and the last notice (a refused operation names its rule).
+"""Under STOP in the console's header (``webui.stop_header``), always in view: recovery, the
+link, the regime, the display mode, a divergence warning with its re-sync, and the last notice (a
+refused operation names its rule).
 
 Why at the top and outside any tab or folder: over a delayed link the operator must be able to
 stop the robot with one click whatever panel is open, and must always know how old the picture
@@ -58,16 +59,13 @@ def regime_text(view: RegimeView) -> str:
 
 
 class StatusBar:
-    """STOP and recovery, link, regime and mode selectors, divergence, notices."""
+    """Recovery, link, regime and mode selectors, divergence, notices."""
 
     def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
         gui = server.gui
-        self.stop = gui.add_button("STOP", color="red", icon=viser.Icon.PLAYER_STOP,
-                                   hint="stop the robot now (it waits for resume, skip or abort)")
-        self.stop.on_click(lambda _: self.actions.run("stop", self.session.stop))
         self.recovery = gui.add_button_group("Recovery", ("Resume", "Skip", "Abort"))
         self.recovery.on_click(self._on_recovery)
         self.link = gui.add_markdown("Link: -")

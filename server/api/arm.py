@@ -1,4 +1,5 @@
-"""Driving the virtual arm (§4.3.4): joint and tool jogs, letting go, collision and zone."""
+"""Driving the virtual arm (§4.3.4): joint and tool jogs, letting go, collision and zone; and
+backing the remote arm out of a contact fault in one call."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from fastapi import APIRouter
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import JogJointIn, JogToolIn, SetJointsIn, StateOut
-from server.console_models import ArmView, CollisionView, ProgramView
+from server.console_models import ArmView, CollisionView, ProgramView, SentListView
 
 router = APIRouter(prefix="/api", tags=["arm"])
 
@@ -54,3 +55,11 @@ def release(session: SessionDep, client: ClientDep) -> ProgramView:
 def collision(session: SessionDep) -> CollisionView:
     """Collision report and control zone of the virtual arm now."""
     return session.collision_view()
+
+
+@router.post("/robot/back_away", response_model=SentListView)
+def back_away(session: SessionDep, client: ClientDep) -> SentListView:
+    """After a contact fault: abort what the robot has not finished, then move the tool 30 mm
+    straight back along the way it was pressing (up when that is not known) at 10 mm/s. 409 when
+    the robot is not in fault or neither motion can be planned from where it stopped."""
+    return session.back_away(client=client)

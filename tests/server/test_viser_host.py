@@ -27,7 +27,7 @@ from fastapi.responses import RedirectResponse
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from server.viser_page import read_send_intervals_ms, unpack
+from server.viser_page import read_send_intervals_ms, served_page, unpack
 from server.viser_host import (
     CLIENT_BUILD_DIR,
     VISER_SUBPROTOCOL,
@@ -165,7 +165,7 @@ def test_page_is_served_with_its_assets(relay_url: str) -> None:
         assert page.status_code == 200
         assert page.headers["content-type"].startswith("text/html")
         assert "<title>Viser</title>" in page.text
-        assert page.content == (CLIENT_BUILD_DIR / "index.html").read_bytes()
+        assert page.content == served_page((CLIENT_BUILD_DIR / "index.html").read_text("utf-8")).encode("utf-8")
         plain = client.get("/viser/", headers={"Accept-Encoding": "identity"})
         assert plain.headers.get("content-encoding") is None and plain.content == page.content
         assert client.get("/viser/index.html").content == page.content
