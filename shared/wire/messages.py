@@ -98,9 +98,9 @@ class RobotState(IntEnum):
 
     IDLE = 0  # buffer empty, holding position
     RUNNING = 1  # executing a statement
-    STOPPED = 2  # stopped by the operator; waits for resume, skip or abort
+    STOPPED = 2  # stopped by the operator (or by silence on the link); waits for resume, skip or abort
     FAULT = 3  # stopped on something unexpected; waits for recovery
-    DISCONNECTED = 4  # console link lost; the robot finishes nothing new until it is back
+    DISCONNECTED = 4  # no console connected: nothing new starts; past the silence limit the arm stops itself
 
 
 class ControlMode(IntEnum):

@@ -205,7 +205,7 @@ def test_stop_while_idle_and_empty_keeps_the_next_unit_from_starting() -> None:
 
 def test_stop_in_fault_and_when_stopped_applies_and_changes_nothing() -> None:
     ex = executor()
-    ex.enqueue(1, Drive(joint=99, target=0.0))
+    ex.enqueue(1, Drive(joint=9, target=0.0))
     ex.enqueue(2, Event(name="next"))
     run(ex, 3)
     assert ex.state is RobotState.FAULT
