@@ -58,8 +58,12 @@ def stop_sent_text(link: LinkView | None) -> str:
 
 def stop_answer_text(answer: str, took_s: float, link: LinkView) -> str:
     """What the operator reads when the robot's answer to STOP is back (``answer``: the
-    session's notice about it, '' if none came)."""
+    session's notice about it, '' if none came). The robot's own words in its acknowledgement
+    say what it did; telemetry travels on another channel and may not show the stop yet."""
     state = f"robot {link.robot_state}" if link.robot_state else "robot state unknown"
+    applied = "robot applied stop: "
+    if answer.startswith(applied):
+        state = f"robot {answer.removeprefix(applied)}"
     if answer.startswith("stop failed"):
         return f"**STOP not confirmed**: {answer}"
     if answer.startswith("robot did not apply"):

@@ -138,3 +138,43 @@ def test_killed_robot_child_is_restarted_and_old_statements_read_unknown(tmp_pat
     finally:
         stop_process(console.proc)
     assert console.proc.returncode == 0
+
+
+def test_a_frozen_console_halts_the_robot_within_the_limit_and_resume_continues(tmp_path) -> None:
+    """The console frozen behind a live link (the link keeps both sockets open): the robot hears
+    no heartbeat, stops the running statement within the silence limit and says why; after the
+    console thaws it shows the halt, and the operator's resume lets the statement finish."""
+    console = start_console(tmp_path, "--delay-ms", "100")
+    frozen = False
+    try:
+        robot_port, _ = _ports(console)
+        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
+        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
+        _api(console, "PUT", "/api/regime", {"regime": "free"})
+        q = _api(console, "GET", "/api/arm")["q_deg"]
+        for text in ("SPEED 3 %", f"DRIVE J1 TO {q[0] + 40:.2f} deg"):
+            _api(console, "POST", "/api/program/insert", {"text": text})
+        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
+        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        os.kill(console.proc.pid, signal.SIGSTOP)
+        frozen, frozen_at = True, time.monotonic()
+        held = wait_for(lambda: (h := health())["state"] == "stopped" and h, SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2, 0.05,
+                        "the robot stopped by silence")
+        assert time.monotonic() - frozen_at < SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2
+        assert "no message from the console" in held["halted"]
+        time.sleep(0.5)  # the arm holds: the statement is still current, not finished
+        assert health()["state"] == "stopped" and health()["current"] == held["current"] != 0
+        os.kill(console.proc.pid, signal.SIGCONT)
+        frozen = False
+        view = wait_for(lambda: (v := _link(console))["status"] == "live" and v["halted"] and v, 15, 0.1,
+                        "the console showing the robot's halt")
+        assert "no message from the console" in view["halted"]
+        _api(console, "POST", "/api/robot/resume")
+        wait_for(lambda: (v := _link(console))["halted"] is None, 15, 0.1, "the halt cleared by the resume")
+        done = wait_for(lambda: (s := _api(console, "GET", "/api/sent"))["pending"] == 0 and s, 60, 0.2,
+                        "the drive finished after resume")
+        assert [s["status"] for s in done["items"]] == ["done", "done"]
+    finally:
+        if frozen:
+            os.kill(console.proc.pid, signal.SIGCONT)
+        stop_process(console.proc)
