@@ -1324,11 +1324,7 @@ class Session:
             for st in outgoing:
                 if st.kind == "MODE":
                     self._robot_mode = st.mode
-            self._comm_counter += 1
-            comm = self._comm_counter
-            now = time.time()
-            for st in outgoing:
-                self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, comm))
+            comm = self._open_communication(outgoing)
             held_before = self._held
             self._advance_start(outgoing, plan)
             arm_events: list[SessionEvent] = []
@@ -1342,6 +1338,14 @@ class Session:
         self._emit([SentChanged(sent=view), ProgramChanged(program=self.program_view()), *arm_events])
         self._refresh_predicted()
         return view
+
+    def _open_communication(self, outgoing: list[Statement]) -> int:
+        """Number a new communication and list its statements as sending; returns its number."""
+        self._comm_counter += 1
+        now = time.time()
+        for st in outgoing:
+            self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, self._comm_counter))
+        return self._comm_counter
 
     def _advance_start(self, statements: list[Statement], plan: Plan | None = None) -> None:
         """The program now starts where the submitted statements are predicted to end (``plan``:
@@ -1640,11 +1644,7 @@ class Session:
             if self._robot_mode is Mode.FORCE:
                 outgoing.insert(0, SetMode(mode=Mode.POSITION))
                 self._robot_mode = Mode.POSITION
-            self._comm_counter += 1
-            comm = self._comm_counter
-            now = time.time()
-            for st in outgoing:
-                self._sent.append(_Sent(len(self._sent) + 1, st, SentStatus.SENDING, now, comm))
+            comm = self._open_communication(outgoing)
             self._start_unknown = True  # the program goes on from where the robot ends: re-sync
             self._recovery_counter += 1
             key = self._recovery_counter
