@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 def drag_goals(session, n: int, rate_hz: float = 100.0, speed: float = 0.05) -> list[np.ndarray]:
     """Tool goals of an operator dragging the gizmo: a slow circle of 40 mm radius in the work
     plane around the start pose, ``speed`` m/s, one goal per event."""
-    start = session.state.world_T_tcp.copy()
+    start = session.arm.state.world_T_tcp.copy()
     radius = 0.04
     omega = speed / radius
     goals = []
@@ -64,28 +64,28 @@ def drag_goals(session, n: int, rate_hz: float = 100.0, speed: float = 0.05) -> 
 
 
 def pipeline(events: int) -> dict:
-    from server.session import Session
+    from server.console import Session
     from shared.cells.loader import DEFAULT_CELL, load_cell
     from shared.robots.jog import jog_tool_to
 
     cell = load_cell(DEFAULT_CELL)
     session = Session(cell)
-    session.set_auto_generate(True)
+    session.program.set_auto_generate(True)
     fanned = 0
 
     def listener(*_args) -> None:
         nonlocal fanned
         fanned += 1
 
-    session.subscribe(listener)
+    session.arm.subscribe(listener)
     goals = drag_goals(session, events)
     times = np.empty(events)
     for k, goal in enumerate(goals):
         t0 = time.perf_counter()
-        session.jog_tool_to(goal, frame="world", constraint="xy", motion="translate")
+        session.arm.jog_tool_to(goal, frame="world", constraint="xy", motion="translate")
         times[k] = time.perf_counter() - t0
-    session.release()
-    statements = len(session.program_view().entries) - 1  # the trailing empty statement
+    session.arm.release()
+    statements = len(session.program.view().entries) - 1  # the trailing empty statement
 
     # the bare kinematics of the same events
     q = cell.q_home.copy()

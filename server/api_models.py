@@ -7,9 +7,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.session import VirtualState
+from server.console import VirtualState
 from shared.spatial import matrix_to_rpy
-
 
 MAX_COUNT = 1_000_000
 """Largest index, count or number a request may carry (a program never holds this many)."""

@@ -20,8 +20,8 @@ from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
 from server.api_models import HealthOut
+from server.console import Session
 from server.http_errors import add_error_handler
-from server.session import Session
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
@@ -58,7 +58,7 @@ def create_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         session = Session(cell)
         if children is not None:
-            session.watch_children(children)
+            session.link.watch_children(children)
         loop = asyncio.get_running_loop()
         tasks: list[asyncio.Task] = []
         client = None
@@ -71,11 +71,11 @@ def create_app(
             async def connect() -> None:
                 await client.start(timeout=1e9)  # keeps trying; submissions queue meanwhile
                 if client.handshake_s is not None:  # the round trip alone, not the wait for the robot
-                    session.note_round_trip(client.handshake_s)
+                    session.dispatch.note_round_trip(client.handshake_s)
                 log.info("robot at %s connected", settings.robot_url)
 
             tasks.append(asyncio.create_task(connect(), name="robot-connect"))
-        tasks.append(asyncio.create_task(session.monitor_link(), name="link-monitor"))
+        tasks.append(asyncio.create_task(session.run(), name="session-clock"))
         viser_server = start_viser()
         try:
             if build_page:

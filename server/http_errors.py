@@ -21,7 +21,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from server.console_models import ConflictError, RefusedByRule
+from server.console import ConflictError, RefusedByRule
 from shared.errors import InputError, TeleprogError
 from shared.wire.strict_json import dumps_finite
 

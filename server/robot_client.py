@@ -275,9 +275,15 @@ class RobotClient:
 
     # -- the command channel --------------------------------------------------------------------
     async def _send_all(self, items: list[bytes | BaseModel]) -> None:
+        """Send on the open socket. A socket that closes under the send is not the caller's
+        failure: what was not answered stays with the sender and goes out again after the next
+        welcome, so a submission or command survives a link that drops while it is sent."""
         assert self._ws is not None
-        for item in items:
-            await self._ws.send(item if isinstance(item, bytes) else encode_message(item))
+        try:
+            for item in items:
+                await self._ws.send(item if isinstance(item, bytes) else encode_message(item))
+        except ConnectionClosed as exc:
+            log.info("the command channel closed while sending (%s); resent after the next welcome", exc)
 
     async def _command_loop(self) -> None:
         said_down = False  # one line per outage, not one per retry

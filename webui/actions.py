@@ -12,6 +12,7 @@ import logging
 from collections.abc import Callable
 from typing import TypeVar
 
+from server.console import RefusedByRule
 from shared.errors import TeleprogError
 
 log = logging.getLogger(__name__)
@@ -29,8 +30,8 @@ class Actions:
         try:
             return call()
         except TeleprogError as exc:
-            refusal = getattr(exc, "refusal", None)
-            rule = getattr(getattr(refusal, "rule", None), "value", None)
+            refusal = exc.refusal if isinstance(exc, RefusedByRule) else None
+            rule = refusal.rule.value if refusal is not None else None
             message = refusal.message if refusal is not None else str(exc)
             self.show_notice("error", f"{what} refused: {message}", rule)
         except Exception as exc:  # noqa: BLE001 - a view must show, not swallow, a failure

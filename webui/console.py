@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import viser
 
-from server.console_models import (
+from server.console import (
     ArmChanged,
     ArmView,
     CollisionChanged,
@@ -32,6 +32,7 @@ from server.console_models import (
     DivergenceChanged,
     LinkChanged,
     Notice,
+    PlacementChanged,
     PredictedPathChanged,
     PreviewChanged,
     PreviewView,
@@ -39,8 +40,8 @@ from server.console_models import (
     RegimeChanged,
     RemoteArmChanged,
     RemoteArmView,
-    PlacementChanged,
     SentChanged,
+    Session,
     TerrainChanged,
 )
 from webui.actions import Actions
@@ -69,7 +70,7 @@ class Console:
     """Handles of everything ``build_console`` made (tests and the app may reach in)."""
 
     server: viser.ViserServer
-    session: object
+    session: Session
     scene: CellScene
     ghost: RemoteGhost
     path: PredictedPath
@@ -172,7 +173,7 @@ class Console:
         self.drive.gizmo.visible = mode is DisplayMode.TELEPROGRAMMING and self.drive.part.value == "Tool"
 
     def _remote_objects(self) -> dict[str, np.ndarray]:
-        poses = getattr(self._remote, "object_poses", None) or {}
+        poses = self._remote.object_poses if self._remote is not None else {}
         return {k: np.asarray(v) for k, v in poses.items()}
 
     def _draw_terrain(self) -> None:
@@ -208,15 +209,16 @@ class Console:
         self.collision.show(view.triangles, warning)
 
 
-def build_console(server: viser.ViserServer, session) -> Console:
+def build_console(server: viser.ViserServer, session: Session) -> Console:
     """Create the scene and every panel for ``session`` on ``server`` and keep them in step
     with the session's events. Call once, after the session exists and before clients load."""
     server.gui.configure_theme(show_share_button=False, control_width="large")
     server.gui.set_panel_label("teleprog console")
     # look at the tool from the front (-y), slightly above: world x runs left to right on screen
-    world_p_tool = np.asarray(session.arm_view().world_T_tcp)[:3, 3]
+    world_p_tool = np.asarray(session.arm.view().world_T_tcp)[:3, 3]
     server.initial_camera.look_at = tuple(world_p_tool)
-    offset = TERRAIN_CAMERA_OFFSET if getattr(session, "terrain", None) is not None else CAMERA_OFFSET
+    offers = session.offers()
+    offset = TERRAIN_CAMERA_OFFSET if offers.terrain else CAMERA_OFFSET
     server.initial_camera.position = tuple(world_p_tool + np.array(offset))
     scene = CellScene(server, session.cell)
     ghost = RemoteGhost(server, session.robot, session.cell.world_T_base)
@@ -241,7 +243,7 @@ def build_console(server: viser.ViserServer, session) -> Console:
     with tabs.add_tab("Submit", viser.Icon.SEND):
         monitor = MonitorPanel(server, session, actions)
     terrain = overlay = None
-    if getattr(session, "terrain", None) is not None:
+    if offers.terrain:
         with tabs.add_tab("Terrain", viser.Icon.MOUNTAIN):
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
@@ -259,8 +261,8 @@ def build_console(server: viser.ViserServer, session) -> Console:
     if snap.remote is not None:
         console.on_event(RemoteArmChanged(remote=snap.remote))
     if terrain is not None:
-        console.on_event(TerrainChanged(terrain=session.terrain_view()))
-        console.on_event(PlacementChanged(placement=session.placement_view()))
+        console.on_event(TerrainChanged(terrain=session.terrain.view()))
+        console.on_event(PlacementChanged(placement=session.terrain.placement_view()))
     session.subscribe_events(console.on_event)
     try:
         server.gui.main_panel.dock_right()

@@ -1,6 +1,6 @@
 """Correcting a virtual object from a camera image (thesis §4.2.3): the operator reads the pixels
 of the object's feature points off the remote camera's image, in the order the cell file lists
-them, and the session locates the object from them (``Session.locate_object``)."""
+them, and the session locates the object from them (``session.locator.locate_object``)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import re
 
 import viser
 
+from server.console import Session
 from shared.errors import InputError
 from webui.actions import Actions
 
@@ -26,7 +27,7 @@ def parse_pixels(text: str) -> list[tuple[float, float]]:
 
 
 class LocatePanel:
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.session = session
         self.actions = actions
         cell = session.cell
@@ -41,10 +42,10 @@ class LocatePanel:
             self.go.on_click(self._on_go)
 
     @staticmethod
-    def wanted(session) -> bool:
+    def wanted(session: Session) -> bool:
         cell = session.cell
         return bool(cell.cameras) and any(len(o.keypoints) >= 4 for o in cell.objects)
 
     def _on_go(self, _event: viser.GuiEvent) -> None:
         text, name, camera = self.pixels.value, self.object.value, self.camera.value
-        self.actions.run(f"locate {name}", lambda: self.session.locate_object(name, camera, parse_pixels(text)))
+        self.actions.run(f"locate {name}", lambda: self.session.locator.locate_object(name, camera, parse_pixels(text)))

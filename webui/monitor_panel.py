@@ -9,7 +9,14 @@ import time
 
 import viser
 
-from server.console_models import FINAL_SENT, ProgramView, SentListView, SentStatus, SentView
+from server.console import (
+    FINAL_SENT,
+    ProgramView,
+    SentListView,
+    SentStatus,
+    SentView,
+    Session,
+)
 from webui.actions import Actions
 from webui.statement_range import StatementRange
 
@@ -54,7 +61,7 @@ def sent_markdown(view: SentListView, now: float | None = None) -> str:
 
 
 class MonitorPanel:
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -63,20 +70,21 @@ class MonitorPanel:
         self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
         self.submit.on_click(self._on_submit)
         self.sent = gui.add_markdown("Nothing sent yet.")
+        self._view: SentListView | None = None
 
     def _on_submit(self, _event: viser.GuiEvent) -> None:
         start, stop = self.range.slice(release=True)  # the program shrinks: next, all that is left
-        self.actions.run("submit", lambda: self.session.submit(start, stop))
+        self.actions.run("submit", lambda: self.session.dispatch.submit(start, stop))
 
     def show_program(self, view: ProgramView) -> None:
         self.range.follow(view)
 
     def show(self, view: SentListView) -> None:
         self._view = view
-        self.sent.content = sent_markdown(view)
+        self.sent.content = sent_markdown(view, self.session.wall_clock())
 
     def tick(self) -> None:
         """Refresh the running times while something is not final (called with link updates)."""
-        view = getattr(self, "_view", None)
+        view = self._view
         if view is not None and view.pending:
-            self.sent.content = sent_markdown(view)
+            self.sent.content = sent_markdown(view, self.session.wall_clock())

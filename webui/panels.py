@@ -12,7 +12,7 @@ import threading
 import numpy as np
 import viser
 
-from server.console_models import ArmView, CollisionView
+from server.console import ArmView, CollisionView, Session
 from shared.robots.jog import CONSTRAINTS, FRAME_NAMES, MOTIONS
 from webui.actions import Actions
 from webui.scene import FRAME_AXES, CellScene
@@ -33,7 +33,7 @@ def direction_label(constraint: str) -> str:
 class DrivePanel:
     """GUI controls for driving the virtual arm."""
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -75,7 +75,7 @@ class DrivePanel:
             if event.client is None:  # our own programmatic update
                 return
             value = float(np.radians(event.target.value))
-            self.actions.run(f"turn J{joint}", lambda: self.session.set_joint(joint, value))
+            self.actions.run(f"turn J{joint}", lambda: self.session.arm.set_joint(joint, value))
             self.server.flush()  # as for the gizmo: the new pose goes out now, not at the window's end
             self._release_soon()
 
@@ -86,7 +86,7 @@ class DrivePanel:
         with self._timer_lock:
             if self._release_timer is not None:
                 self._release_timer.cancel()
-            self._release_timer = threading.Timer(SLIDER_RELEASE_S, lambda: self.actions.run("release", self.session.release))
+            self._release_timer = threading.Timer(SLIDER_RELEASE_S, lambda: self.actions.run("release", self.session.arm.release))
             self._release_timer.daemon = True
             self._release_timer.start()
 
@@ -96,7 +96,7 @@ class DrivePanel:
     def _on_drag_end(self, _event) -> None:
         """The operator let go: the session closes the open generated segment."""
         self._dragging = False
-        self.actions.run("release", self.session.release)
+        self.actions.run("release", self.session.arm.release)
         if self._arm is not None:
             self._snap_gizmo(self._arm)
 
@@ -114,7 +114,7 @@ class DrivePanel:
         constraint = self._directions[self.constraint.value]
         self.actions.run(
             "drive",
-            lambda: self.session.jog_tool_to(goal, frame=self.frame.value, constraint=constraint, motion=self.motion.value),
+            lambda: self.session.arm.jog_tool_to(goal, frame=self.frame.value, constraint=constraint, motion=self.motion.value),
         )
         # the session's events have redrawn the arm by now: send them at once rather than at the
         # end of viser's window (up to 1/60 s), which was most of a drag update's round trip

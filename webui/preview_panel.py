@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import viser
 
-from server.console_models import PreviewView, ProgramView
+from server.console import PreviewView, ProgramView, Session
 from webui.actions import Actions
 from webui.statement_range import StatementRange
 
@@ -36,7 +36,7 @@ def warnings_markdown(view: PreviewView) -> str:
 
 
 class PreviewPanel:
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -54,15 +54,15 @@ class PreviewPanel:
     # -- clicks -------------------------------------------------------------------------------
     def _on_start(self, _event: viser.GuiEvent) -> None:
         start, stop = self.range.slice()
-        self.actions.run("preview", lambda: self.session.begin_preview(start, stop))
+        self.actions.run("preview", lambda: self.session.preview.begin(start, stop))
 
     def _on_control(self, event: viser.GuiEvent) -> None:
         choice = event.target.value
         call = {
-            "Play": self.session.play,
-            "Pause": self.session.pause,
-            "Step": self.session.step,
-            "End": self.session.end_preview,
+            "Play": self.session.preview.play,
+            "Pause": self.session.preview.pause,
+            "Step": self.session.preview.step,
+            "End": self.session.preview.end,
         }[choice]
         self.actions.run(f"preview {choice.lower()}", call)
 
@@ -70,7 +70,7 @@ class PreviewPanel:
         if self._setting or event.client is None:
             return
         t = float(self.time.value)
-        self.actions.run("preview scrub", lambda: self.session.seek(t))
+        self.actions.run("preview scrub", lambda: self.session.preview.seek(t))
 
     # -- session events -----------------------------------------------------------------------
     def show_program(self, view: ProgramView) -> None:

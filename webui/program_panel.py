@@ -12,7 +12,7 @@ import logging
 
 import viser
 
-from server.console_models import ProgramView, StatementView
+from server.console import ProgramView, Session, StatementView
 from webui.actions import Actions
 
 log = logging.getLogger(__name__)
@@ -45,7 +45,7 @@ def program_markdown(view: ProgramView) -> str:
 class ProgramPanel:
     """Controls of the program editor; redrawn from ``ProgramView`` events."""
 
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -58,7 +58,7 @@ class ProgramPanel:
         self.selector.on_update(self._on_select)
         self.new_text = gui.add_text("New statement", "", hint="e.g. DRAW TO (0, -80, 160) mm IN WORK")
         self.insert = gui.add_button("Insert before selection", icon=viser.Icon.ROW_INSERT_TOP)
-        self.insert.on_click(lambda _: self.actions.run("insert", lambda: self.session.insert(self.new_text.value)))
+        self.insert.on_click(lambda _: self.actions.run("insert", lambda: self.session.program.insert(self.new_text.value)))
         self.edit_text = gui.add_text(
             "Selected text", "", hint="edit WITH / UNTIL (any action) or the parameters (last action only), then Replace"
         )
@@ -80,7 +80,7 @@ class ProgramPanel:
         if self._setting or event.client is None:
             return
         on = bool(self.auto.value)
-        self.actions.run("automatic generation", lambda: self.session.set_auto_generate(on))
+        self.actions.run("automatic generation", lambda: self.session.program.set_auto_generate(on))
 
     def _on_select(self, event: viser.GuiEvent) -> None:
         if self._setting or event.client is None:
@@ -89,24 +89,24 @@ class ProgramPanel:
             index = self._options.index(self.selector.value)
         except ValueError:
             return
-        self.actions.run("select", lambda: self.session.select(index))
+        self.actions.run("select", lambda: self.session.program.select(index))
 
     def _on_edit(self, event: viser.GuiEvent) -> None:
         choice = event.target.value
         if choice == "Replace":
             text = self.edit_text.value
-            self.actions.run("modify", lambda: self.session.modify(text))
+            self.actions.run("modify", lambda: self.session.program.modify(text))
         elif choice == "Clear WITH/UNTIL":
-            self.actions.run("clear WITH/UNTIL", lambda: self.session.modify_conditions(speed=None, until=None))
+            self.actions.run("clear WITH/UNTIL", lambda: self.session.program.modify_conditions(speed=None, until=None))
         else:
-            self.actions.run("delete", self.session.delete)
+            self.actions.run("delete", self.session.program.delete)
 
     def _on_history(self, event: viser.GuiEvent) -> None:
         choice = event.target.value
-        self.actions.run(choice.lower(), self.session.undo if choice == "Undo" else self.session.redo)
+        self.actions.run(choice.lower(), self.session.program.undo if choice == "Undo" else self.session.program.redo)
 
     def _on_save(self, event: viser.GuiEvent) -> None:
-        content = self.actions.run("save", lambda: self.session.save_program("text"))
+        content = self.actions.run("save", lambda: self.session.program.save("text"))
         if content is not None and event.client is not None:
             event.client.send_file_download("program.tp", content.encode("utf-8"), save_immediately=True)
 
@@ -117,7 +117,7 @@ class ProgramPanel:
         except UnicodeDecodeError:
             self.actions.show_notice("error", f"load refused: {upload.name} is not UTF-8 text", None)
             return
-        self.actions.run("load", lambda: self.session.load_program(text, upload.name))
+        self.actions.run("load", lambda: self.session.program.load(text, upload.name))
 
     # -- session events -----------------------------------------------------------------------
     def show(self, view: ProgramView) -> None:

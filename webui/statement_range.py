@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import viser
 
-from server.console_models import ProgramView
+from server.console import ProgramView
 
 
 class StatementRange:

@@ -13,13 +13,14 @@ import logging
 
 import viser
 
-from server.console_models import (
+from server.console import (
     DisplayMode,
     DivergenceView,
     LinkView,
     Notice,
     Regime,
     RegimeView,
+    Session,
 )
 from webui.actions import Actions
 
@@ -61,7 +62,7 @@ def regime_text(view: RegimeView) -> str:
 class StatusBar:
     """Recovery, link, regime and mode selectors, divergence, notices."""
 
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -85,7 +86,7 @@ class StatusBar:
     # -- clicks -------------------------------------------------------------------------------
     def _on_recovery(self, event: viser.GuiEvent) -> None:
         choice = event.target.value
-        call = {"Resume": self.session.resume, "Skip": self.session.skip, "Abort": self.session.abort}[choice]
+        call = {"Resume": self.session.recovery.resume, "Skip": self.session.recovery.skip, "Abort": self.session.recovery.abort}[choice]
         self.actions.run(choice.lower(), call)
 
     def _on_regime(self, event: viser.GuiEvent) -> None:
@@ -93,13 +94,13 @@ class StatusBar:
             return
         value = self.regime.value
         override = None if value == AUTO else Regime(value)
-        self.actions.run("regime override", lambda: self.session.set_regime_override(override))
+        self.actions.run("regime override", lambda: self.session.modes.set_regime_override(override))
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
         if self._setting or event.client is None:
             return
         mode = DisplayMode(self.mode.value)
-        self.actions.run("display mode", lambda: self.session.set_display_mode(mode))
+        self.actions.run("display mode", lambda: self.session.modes.set_display_mode(mode))
 
     # -- session events -----------------------------------------------------------------------
     def show_link(self, link: LinkView) -> None:

@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import viser
 
-from server.console_models import LinkView, Notice
+from server.console import LinkView, Notice, Session
 from webui.actions import Actions
 
 log = logging.getLogger(__name__)
@@ -74,7 +74,7 @@ def stop_answer_text(answer: str, took_s: float, link: LinkView) -> str:
 class StopHeader:
     """STOP, its acknowledgement, the robot's state and "Back away" (see the module docstring)."""
 
-    def __init__(self, server: viser.ViserServer, session, actions: Actions,
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.session = session
         self.actions = actions
@@ -89,14 +89,14 @@ class StopHeader:
             "Back away", color="orange", icon=viser.Icon.ARROW_BACK_UP, visible=False,
             hint="after a contact: abort what is left, then move the tool 30 mm back the way it came (or up), slowly",
         )
-        self.back_away.on_click(lambda _: self.actions.run("back away", self.session.back_away))
+        self.back_away.on_click(lambda _: self.actions.run("back away", self.session.recovery.back_away))
         self._sent_at: float | None = None  # when the STOP we wait for left (clock)
         self._seen_pending = False
         self._answer = ""  # the robot's answer to it, from the notice
 
     def press_stop(self) -> None:
         self._sent_at, self._seen_pending, self._answer = self._clock(), False, ""
-        link = self.actions.run("stop", self.session.stop)
+        link = self.actions.run("stop", self.session.recovery.stop)
         if link is None:  # refused (no robot): the notice line says why
             self._sent_at = None
             return

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from server.console_models import PlacementView, TerrainView
+from server.console import PlacementView, TerrainView
 
 SEGMENT_COLOR = (255, 200, 0)
 SENSOR_CLEAR = (60, 200, 90)

@@ -3,7 +3,7 @@ checks, the virtual sensors on demand, and instrument placement at a target pick
 the terrain (or typed as a ground position), with its program inserted on request.
 
 Every control calls the session; the placement itself (IK, clearances, program) is computed by
-``shared.terrain`` behind ``Session.place_instrument``.
+``shared.terrain`` behind ``session.terrain.place_instrument``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import logging
 
 import viser
 
-from server.console_models import PlacementView, TerrainView
+from server.console import PlacementView, Session, TerrainView
 from webui.actions import Actions
 
 log = logging.getLogger(__name__)
@@ -51,7 +51,7 @@ def placement_markdown(view: PlacementView | None) -> str:
 class TerrainPanel:
     """Controls of the terrain tab; redrawn from ``TerrainChanged`` / ``PlacementChanged``."""
 
-    def __init__(self, server: viser.ViserServer, session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -70,16 +70,16 @@ class TerrainPanel:
             self.plan.on_click(self._on_plan)
             self.result = gui.add_markdown(placement_markdown(None))
             self.insert = gui.add_button("Insert placement program", icon=viser.Icon.ROW_INSERT_TOP, disabled=True)
-            self.insert.on_click(lambda _: self.actions.run("insert the placement program", self.session.insert_placement))
+            self.insert.on_click(lambda _: self.actions.run("insert the placement program", self.session.terrain.insert_placement))
             self.goto = gui.add_button("Show best configuration", icon=viser.Icon.EYE, disabled=True)
-            self.goto.on_click(lambda _: self.actions.run("show the best configuration", lambda: self.session.goto_placement(0)))
+            self.goto.on_click(lambda _: self.actions.run("show the best configuration", lambda: self.session.terrain.goto_placement(0)))
         self._clicking = False
 
     # -- callbacks ---------------------------------------------------------------------------
     def _on_sensors(self, event: viser.GuiEvent) -> None:
         if event.client is None:
             return
-        self.actions.run("show the virtual sensors", lambda: self.session.set_terrain_sensors(bool(self.sensors.value)))
+        self.actions.run("show the virtual sensors", lambda: self.session.terrain.set_sensors(bool(self.sensors.value)))
 
     def _on_pick_mode(self, event: viser.GuiEvent) -> None:
         on = bool(self.pick.value)
@@ -92,11 +92,11 @@ class TerrainPanel:
 
     def _on_scene_click(self, event) -> None:
         ray = (tuple(event.ray_origin), tuple(event.ray_direction))
-        self.actions.run("place the instrument", lambda: self.session.place_instrument(ray=ray))
+        self.actions.run("place the instrument", lambda: self.session.terrain.place_instrument(ray=ray))
 
     def _on_plan(self, _event: viser.GuiEvent) -> None:
         xy = (float(self.ground_x.value) * 1e-3, float(self.ground_y.value) * 1e-3)
-        self.actions.run("place the instrument", lambda: self.session.place_instrument(ground_xy=xy))
+        self.actions.run("place the instrument", lambda: self.session.terrain.place_instrument(ground_xy=xy))
 
     # -- drawing -----------------------------------------------------------------------------
     def show(self, view: TerrainView) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from fastapi import Depends, FastAPI
 
-from server.api import arm, events, objects, program, preview, robot, session, terrain
+from server.api import arm, events, objects, preview, program, robot, session, terrain
 from server.api.deps import strict_json_body
 from server.http_errors import ERROR_RESPONSES
 

@@ -8,37 +8,37 @@ from fastapi import APIRouter
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import JogJointIn, JogToolIn, SetJointsIn, StateOut
-from server.console_models import ArmView, CollisionView, ProgramView, SentListView
+from server.console import ArmView, CollisionView, ProgramView, SentListView
 
 router = APIRouter(prefix="/api", tags=["arm"])
 
 
 @router.get("/state", response_model=StateOut)
 def get_state(session: SessionDep) -> StateOut:
-    return StateOut.from_state(session.state)
+    return StateOut.from_state(session.arm.state)
 
 
 @router.get("/arm", response_model=ArmView)
 def get_arm(session: SessionDep) -> ArmView:
-    return session.arm_view()
+    return session.arm.view()
 
 
 @router.put("/robot/joints", response_model=StateOut)
 def set_joints(body: SetJointsIn, session: SessionDep, client: ClientDep) -> StateOut:
     """Put the virtual arm at a joint vector (degrees); 422 names a joint outside its range."""
-    return StateOut.from_state(session.set_q(np.radians(body.deg), client=client))
+    return StateOut.from_state(session.arm.set_q(np.radians(body.deg), client=client))
 
 
 @router.post("/jog/joint", response_model=StateOut)
 def jog_joint(body: JogJointIn, session: SessionDep, client: ClientDep) -> StateOut:
-    return StateOut.from_state(session.jog_joint(body.joint, float(np.radians(body.delta_deg)), client=client))
+    return StateOut.from_state(session.arm.jog_joint(body.joint, float(np.radians(body.delta_deg)), client=client))
 
 
 @router.post("/jog/tool", response_model=StateOut)
 def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOut:
     scale = 1e-3 if body.motion == "translate" else np.pi / 180.0
     return StateOut.from_state(
-        session.jog_tool(
+        session.arm.jog_tool(
             frame=body.frame, constraint=body.constraint, motion=body.motion,
             displacement=np.array(body.displacement) * scale, client=client,
         )
@@ -48,13 +48,13 @@ def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOu
 @router.post("/jog/release", response_model=ProgramView)
 def release(session: SessionDep, client: ClientDep) -> ProgramView:
     """The operator let go: the open generated segment becomes a statement."""
-    return session.release(client=client)
+    return session.arm.release(client=client)
 
 
 @router.get("/collision", response_model=CollisionView)
 def collision(session: SessionDep) -> CollisionView:
     """Collision report and control zone of the virtual arm now."""
-    return session.collision_view()
+    return session.arm.collision_view()
 
 
 @router.post("/robot/back_away", response_model=SentListView)
@@ -62,4 +62,4 @@ def back_away(session: SessionDep, client: ClientDep) -> SentListView:
     """After a contact fault: abort what the robot has not finished, then move the tool 30 mm
     straight back along the way it was pressing (up when that is not known) at 10 mm/s. 409 when
     the robot is not in fault or neither motion can be planned from where it stopped."""
-    return session.back_away(client=client)
+    return session.recovery.back_away(client=client)

@@ -6,8 +6,7 @@ from typing import Annotated
 
 from fastapi import Depends, Header, HTTPException, Request
 
-from server.console_models import Caller
-from server.session import Session
+from server.console import Caller, Session
 from shared.errors import InputError
 from shared.wire.strict_json import StrictJSONError, loads_strict
 

@@ -13,7 +13,7 @@ import logging
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from pydantic import TypeAdapter
 
-from server.console_models import SessionEvent
+from server.console import SessionEvent
 from shared.wire.strict_json import dumps_finite
 
 router = APIRouter(tags=["events"])

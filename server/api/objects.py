@@ -9,7 +9,7 @@ from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import ApiIn
-from server.console_models import LocatedView
+from server.console import LocatedView
 
 router = APIRouter(prefix="/api", tags=["objects"])
 
@@ -55,4 +55,4 @@ def locate(name: str, body: LocateIn, session: SessionDep, client: ClientDep) ->
     """Correct the virtual object's pose from its feature points seen at ``pixels`` in the
     named camera's image; 400 when the pixels do not fit (wrong order, wrong object) or cannot
     determine a pose (repeated or collinear points)."""
-    return session.locate_object(name, body.camera, body.pixels, client=client)
+    return session.locator.locate_object(name, body.camera, body.pixels, client=client)

@@ -7,7 +7,7 @@ from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import MAX_COUNT, MAX_TIME_S, ApiIn
-from server.console_models import PreviewView
+from server.console import PreviewView
 
 router = APIRouter(prefix="/api/preview", tags=["preview"])
 
@@ -31,34 +31,34 @@ class StepIn(ApiIn):
 
 @router.get("", response_model=PreviewView)
 def get_preview(session: SessionDep) -> PreviewView:
-    return session.preview_view()
+    return session.preview.view()
 
 
 @router.post("/begin", response_model=PreviewView)
 def begin(body: RangeIn, session: SessionDep, client: ClientDep) -> PreviewView:
-    return session.begin_preview(body.start, body.stop, client=client)
+    return session.preview.begin(body.start, body.stop, client=client)
 
 
 @router.post("/play", response_model=PreviewView)
 def play(session: SessionDep, client: ClientDep, body: PlayIn | None = None) -> PreviewView:
-    return session.play((body or PlayIn()).rate, client=client)
+    return session.preview.play((body or PlayIn()).rate, client=client)
 
 
 @router.post("/pause", response_model=PreviewView)
 def pause(session: SessionDep, client: ClientDep) -> PreviewView:
-    return session.pause(client=client)
+    return session.preview.pause(client=client)
 
 
 @router.post("/seek", response_model=PreviewView)
 def seek(body: SeekIn, session: SessionDep, client: ClientDep) -> PreviewView:
-    return session.seek(body.t, client=client)
+    return session.preview.seek(body.t, client=client)
 
 
 @router.post("/step", response_model=PreviewView)
 def step(session: SessionDep, client: ClientDep, body: StepIn | None = None) -> PreviewView:
-    return session.step((body or StepIn()).statements, client=client)
+    return session.preview.step((body or StepIn()).statements, client=client)
 
 
 @router.post("/end", response_model=PreviewView)
 def end(session: SessionDep, client: ClientDep) -> PreviewView:
-    return session.end_preview(client=client)
+    return session.preview.end(client=client)

@@ -11,7 +11,7 @@ from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import MAX_COUNT, ApiIn
-from server.console_models import ProgramView
+from server.console import ProgramView
 from shared.errors import InputError
 from shared.language.statements import Speed, Statement, Until
 from shared.program.editor import KEEP
@@ -57,28 +57,28 @@ class LoadIn(ApiIn):
 
 @router.get("", response_model=ProgramView)
 def get_program(session: SessionDep) -> ProgramView:
-    return session.program_view()
+    return session.program.view()
 
 
 @router.post("/select", response_model=ProgramView)
 def select(body: SelectIn, session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.select(body.index, client=client)
+    return session.program.select(body.index, client=client)
 
 
 @router.post("/insert", response_model=ProgramView)
 def insert(body: StatementIn, session: SessionDep, client: ClientDep) -> ProgramView:
     """Insert before the selection; 409 names the §4.3.6 rule that refuses it."""
-    return session.insert(body.resolve(), client=client)
+    return session.program.insert(body.resolve(), client=client)
 
 
 @router.post("/delete", response_model=ProgramView)
 def delete(session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.delete(client=client)
+    return session.program.delete(client=client)
 
 
 @router.post("/modify", response_model=ProgramView)
 def modify(body: StatementIn, session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.modify(body.resolve(), client=client)
+    return session.program.modify(body.resolve(), client=client)
 
 
 @router.post("/conditions", response_model=ProgramView)
@@ -86,29 +86,29 @@ def conditions(body: ConditionsIn, session: SessionDep, client: ClientDep) -> Pr
     """Set or clear the WITH speed and UNTIL condition of the selected action."""
     speed = None if body.clear_speed else (body.speed if body.speed is not None else KEEP)
     until = None if body.clear_until else (body.until if body.until is not None else KEEP)
-    return session.modify_conditions(speed=speed, until=until, client=client)
+    return session.program.modify_conditions(speed=speed, until=until, client=client)
 
 
 @router.post("/undo", response_model=ProgramView)
 def undo(session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.undo(client=client)
+    return session.program.undo(client=client)
 
 
 @router.post("/redo", response_model=ProgramView)
 def redo(session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.redo(client=client)
+    return session.program.redo(client=client)
 
 
 @router.put("/auto", response_model=ProgramView)
 def auto(body: AutoIn, session: SessionDep, client: ClientDep) -> ProgramView:
     """Automatic generation from the arm's motion on or off."""
-    return session.set_auto_generate(body.on, client=client)
+    return session.program.set_auto_generate(body.on, client=client)
 
 
 @router.post("/load", response_model=ProgramView)
 def load(body: LoadIn, session: SessionDep, client: ClientDep) -> ProgramView:
     """Replace the program by a file's content; a broken file is a 400 naming file:line:col."""
-    return session.load_program(body.text, body.filename, client=client)
+    return session.program.load(body.text, body.filename, client=client)
 
 
 @router.post("/upload", response_model=ProgramView)
@@ -119,10 +119,10 @@ async def upload(request: Request, session: SessionDep, client: ClientDep, filen
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(f"{filename}: not UTF-8 text (byte {exc.start})") from None
-    return session.load_program(text, filename, client=client)
+    return session.program.load(text, filename, client=client)
 
 
 @router.get("/save", response_class=PlainTextResponse)
 def save(session: SessionDep, format: Literal["text", "json"] = "text") -> PlainTextResponse:
     """The program as a file (text form or JSON)."""
-    return PlainTextResponse(session.save_program(format))
+    return PlainTextResponse(session.program.save(format))

@@ -7,7 +7,14 @@ from fastapi import APIRouter, HTTPException
 from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
-from server.console_models import DivergenceView, LinkView, PredictedPathView, RemoteArmView, SentListView, SessionSnapshot
+from server.console import (
+    DivergenceView,
+    LinkView,
+    PredictedPathView,
+    RemoteArmView,
+    SentListView,
+    SessionSnapshot,
+)
 
 router = APIRouter(prefix="/api", tags=["robot"])
 
@@ -24,43 +31,43 @@ class SkipIn(BaseModel):
 @router.post("/submit", response_model=SentListView)
 def submit(body: SubmitIn, session: SessionDep, client: ClientDep) -> SentListView:
     """Send statements[start:stop]; they leave the program and join the sent list."""
-    return session.submit(body.start, body.stop, client=client)
+    return session.dispatch.submit(body.start, body.stop, client=client)
 
 
 @router.get("/sent", response_model=SentListView)
 def sent(session: SessionDep) -> SentListView:
-    return session.sent_view()
+    return session.dispatch.view()
 
 
 @router.post("/robot/stop", response_model=LinkView)
 def stop(session: SessionDep, client: ClientDep) -> LinkView:
     """STOP (anyone may press it)."""
-    return session.stop(client=client)
+    return session.recovery.stop(client=client)
 
 
 @router.post("/robot/resume", response_model=LinkView)
 def resume(session: SessionDep, client: ClientDep) -> LinkView:
-    return session.resume(client=client)
+    return session.recovery.resume(client=client)
 
 
 @router.post("/robot/skip", response_model=LinkView)
 def skip(session: SessionDep, client: ClientDep, body: SkipIn | None = None) -> LinkView:
-    return session.skip((body or SkipIn()).number, client=client)
+    return session.recovery.skip((body or SkipIn()).number, client=client)
 
 
 @router.post("/robot/abort", response_model=LinkView)
 def abort(session: SessionDep, client: ClientDep) -> LinkView:
-    return session.abort(client=client)
+    return session.recovery.abort(client=client)
 
 
 @router.get("/link", response_model=LinkView)
 def link(session: SessionDep) -> LinkView:
-    return session.link_view()
+    return session.link.view()
 
 
 @router.get("/remote", response_model=RemoteArmView)
 def remote(session: SessionDep) -> RemoteArmView:
-    view = session.remote_view()
+    view = session.remote.view()
     if view is None:
         raise HTTPException(404, "no telemetry from the robot yet")
     return view
@@ -68,12 +75,12 @@ def remote(session: SessionDep) -> RemoteArmView:
 
 @router.get("/predicted", response_model=PredictedPathView)
 def predicted(session: SessionDep) -> PredictedPathView:
-    return session.predicted_view()
+    return session.remote.predicted_view()
 
 
 @router.get("/divergence", response_model=DivergenceView)
 def divergence(session: SessionDep) -> DivergenceView:
-    return session.divergence_view()
+    return session.remote.divergence_view()
 
 
 @router.post("/resync", response_model=SessionSnapshot)

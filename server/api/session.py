@@ -7,8 +7,15 @@ from pydantic import BaseModel, Field
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import ApiIn
+from server.console import (
+    ControlGrant,
+    ControlView,
+    DisplayMode,
+    Regime,
+    RegimeView,
+    SessionSnapshot,
+)
 from shared.errors import InputError
-from server.console_models import ControlGrant, ControlView, DisplayMode, Regime, RegimeView, SessionSnapshot
 
 router = APIRouter(prefix="/api", tags=["session"])
 
@@ -33,7 +40,7 @@ def snapshot(session: SessionDep) -> SessionSnapshot:
 
 @router.get("/control", response_model=ControlView)
 def control(session: SessionDep) -> ControlView:
-    return session.control_view()
+    return session.control.view()
 
 
 @router.post("/control/request", response_model=ControlGrant)
@@ -43,7 +50,7 @@ def request_control(session: SessionDep, client: ClientDep) -> ControlGrant:
     another holds control (take over explicitly with ``/api/control/takeover``)."""
     if client.name is None:
         raise InputError("name yourself with the X-Teleprog-Client header to take control")
-    return session.request_control(client)
+    return session.control.request(client)
 
 
 @router.post("/control/takeover", response_model=ControlGrant)
@@ -52,32 +59,32 @@ def takeover_control(session: SessionDep, client: ClientDep) -> ControlGrant:
     notice and a control event on ``/api/events``, ``last_takeover`` in ``GET /api/control``)."""
     if client.name is None:
         raise InputError("name yourself with the X-Teleprog-Client header to take over control")
-    return session.takeover_control(client)
+    return session.control.takeover(client)
 
 
 @router.post("/control/release", response_model=ControlView)
 def release_control(session: SessionDep, client: ClientDep) -> ControlView:
     """Give the lock back; needs the holder's token (X-Teleprog-Token)."""
-    return session.release_control(client)
+    return session.control.release(client)
 
 
 @router.get("/regime", response_model=RegimeView)
 def regime(session: SessionDep) -> RegimeView:
-    return session.regime_view()
+    return session.modes.regime_view()
 
 
 @router.put("/regime", response_model=RegimeView)
 def set_regime(body: RegimeIn, session: SessionDep, client: ClientDep) -> RegimeView:
     """Override the regime the control zone calls for (§4.2.1), or follow the zone again."""
-    return session.set_regime_override(body.regime, client=client)
+    return session.modes.set_regime_override(body.regime, client=client)
 
 
 @router.get("/display", response_model=DisplayOut)
 def display(session: SessionDep) -> DisplayOut:
-    return DisplayOut(display=session.display_mode)
+    return DisplayOut(display=session.modes.display)
 
 
 @router.put("/display", response_model=DisplayOut)
 def set_display(body: DisplayIn, session: SessionDep, client: ClientDep) -> DisplayOut:
     """Teleprogramming, task preview or telepresence (§4.3.7)."""
-    return DisplayOut(display=session.set_display_mode(body.mode, client=client))
+    return DisplayOut(display=session.modes.set_display_mode(body.mode, client=client))

@@ -9,7 +9,7 @@ from pydantic import Field, model_validator
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import MAX_COUNT, ApiIn, Millimetres, StateOut
-from server.console_models import PlacementView, ProgramView, TerrainView
+from server.console import PlacementView, ProgramView, TerrainView
 
 router = APIRouter(prefix="/api/terrain", tags=["terrain"])
 
@@ -39,12 +39,12 @@ class GotoIn(ApiIn):
 def terrain(session: SessionDep) -> TerrainView:
     """Exact arm-terrain distance with its witness points, the head's distance, the sensors'
     reading and, on contact, the touching triangles, at the virtual arm's pose."""
-    return session.terrain_view()
+    return session.terrain.view()
 
 
 @router.put("/sensors", response_model=TerrainView)
 def sensors(body: SensorsIn, session: SessionDep, client: ClientDep) -> TerrainView:
-    return session.set_terrain_sensors(body.show, client=client)
+    return session.terrain.set_sensors(body.show, client=client)
 
 
 @router.post("/placement", response_model=PlacementView)
@@ -52,22 +52,22 @@ def place(body: PlaceIn, session: SessionDep, client: ClientDep) -> PlacementVie
     """Plan the instrument placement at the target: every safe configuration, best first, and
     the statements of the best (insert them with ``POST /api/terrain/placement/insert``)."""
     if body.target_mm is not None:
-        return session.place_instrument(world_p=np.asarray(body.target_mm) * 1e-3, client=client)
-    return session.place_instrument(ground_xy=np.asarray(body.ground_mm) * 1e-3, client=client)
+        return session.terrain.place_instrument(world_p=np.asarray(body.target_mm) * 1e-3, client=client)
+    return session.terrain.place_instrument(ground_xy=np.asarray(body.ground_mm) * 1e-3, client=client)
 
 
 @router.get("/placement", response_model=PlacementView | None)
 def placement(session: SessionDep) -> PlacementView | None:
-    return session.placement_view()
+    return session.terrain.placement_view()
 
 
 @router.post("/placement/insert", response_model=ProgramView)
 def insert(session: SessionDep, client: ClientDep) -> ProgramView:
     """Insert the current placement's statements into the program at the selection."""
-    return session.insert_placement(client=client)
+    return session.terrain.insert_placement(client=client)
 
 
 @router.post("/placement/goto", response_model=StateOut)
 def goto(body: GotoIn, session: SessionDep, client: ClientDep) -> StateOut:
     """Put the virtual arm at a placement candidate's configuration."""
-    return StateOut.from_state(session.goto_placement(body.candidate - 1, client=client))
+    return StateOut.from_state(session.terrain.goto_placement(body.candidate - 1, client=client))

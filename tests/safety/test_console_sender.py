@@ -59,3 +59,29 @@ def test_a_new_robot_session_leaves_the_old_work_unknown_and_numbers_from_one() 
     assert cmd.command_id == 1
     sender.on_message(RecoveryAck(command_id=1, applied=True))
     assert sender.idle
+
+
+def test_a_socket_closing_under_a_submission_keeps_it_for_the_next_welcome() -> None:
+    """The robot dies between the console's last look at the socket and its send: the submission
+    neither fails nor is lost; it waits in the sender's outbox for the next welcome."""
+    import asyncio
+
+    import pytest
+    from websockets.exceptions import ConnectionClosedError
+
+    from server.robot_client import RobotClient
+
+    class ClosedSocket:
+        async def send(self, _data) -> None:
+            raise ConnectionClosedError(None, None)
+
+    async def run() -> RobotClient:
+        client = RobotClient("ws://127.0.0.1:9")  # never started: the socket is the stand-in above
+        client._ws = ClosedSocket()  # noqa: SLF001 - the moment between a socket's death and its notice
+        client.connected.set()
+        with pytest.raises(asyncio.TimeoutError):  # no answer yet; ConnectionClosed must not escape
+            await client.submit([Event(name="kept")], timeout=0.2)
+        return client
+
+    client = asyncio.run(run())
+    assert len(client.sender.outbox) == 1  # resent after the next welcome

@@ -6,7 +6,6 @@ import subprocess
 import sys
 
 import numpy as np
-
 from support import PROJECT_DIR, start_console, stop_process
 
 

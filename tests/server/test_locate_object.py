@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from server.console_models import ArmChanged
+from server.console import ArmChanged
 from shared.errors import InputError, UnknownNameError
 from shared.spatial import pose_to_transform
 
@@ -25,17 +25,17 @@ def test_the_peg_seen_elsewhere_moves_the_virtual_peg_there(session) -> None:
     real = model @ pose_to_transform(np.array([0.004, -0.003, 0.0]), np.radians([0.0, 0.0, 4.0]))
     events = []
     session.subscribe_events(events.append)
-    view = session.locate_object("peg", "front", seen(cell, real).tolist())
+    view = session.locator.locate_object("peg", "front", seen(cell, real).tolist())
     np.testing.assert_allclose(view.world_T_object, real, atol=1e-9)
     assert view.moved == pytest.approx(np.linalg.norm(real[:3, 3] - model[:3, 3]))
-    np.testing.assert_allclose(session.arm_view().object_poses["peg"], real, atol=1e-9)
+    np.testing.assert_allclose(session.arm.view().object_poses["peg"], real, atol=1e-9)
     assert any(isinstance(e, ArmChanged) and "peg" in e.arm.object_poses for e in events)
 
 
 def test_pixel_noise_keeps_the_peg_within_a_millimetre_across_the_image(session) -> None:
     cell = session.cell
     real = cell.object("peg").world_T_object @ pose_to_transform(np.array([0.002, 0.001, 0.0]), np.zeros(3))
-    view = session.locate_object("peg", "front", seen(cell, real, noise_px=0.3, seed=5).tolist())
+    view = session.locator.locate_object("peg", "front", seen(cell, real, noise_px=0.3, seed=5).tolist())
     err = np.array(view.world_T_object)[:3, 3] - real[:3, 3]
     camera = cell.cameras["front"]
     ray = real[:3, 3] - camera.world_T_camera[:3, 3]
@@ -48,16 +48,16 @@ def test_refusals_say_what_is_wrong(session) -> None:
     cell = session.cell
     pixels = seen(cell, cell.object("peg").world_T_object)
     with pytest.raises(UnknownNameError, match="camera"):
-        session.locate_object("peg", "rear", pixels.tolist())
+        session.locator.locate_object("peg", "rear", pixels.tolist())
     with pytest.raises(UnknownNameError, match="object"):
-        session.locate_object("bolt", "front", pixels.tolist())
+        session.locator.locate_object("bolt", "front", pixels.tolist())
     with pytest.raises(InputError, match="4"):
-        session.locate_object("table", "front", pixels.tolist())  # the table has no feature points
+        session.locator.locate_object("table", "front", pixels.tolist())  # the table has no feature points
     with pytest.raises(InputError, match="one pixel"):
-        session.locate_object("peg", "front", pixels[:3].tolist())
+        session.locator.locate_object("peg", "front", pixels[:3].tolist())
     with pytest.raises(InputError, match="do not fit|behind"):
-        session.locate_object("peg", "front", pixels[[2, 0, 3, 1]].tolist())  # wrong order
-    np.testing.assert_allclose(session.arm_view().object_poses.get("peg", cell.object("peg").world_T_object),
+        session.locator.locate_object("peg", "front", pixels[[2, 0, 3, 1]].tolist())  # wrong order
+    np.testing.assert_allclose(session.arm.view().object_poses.get("peg", cell.object("peg").world_T_object),
                                cell.object("peg").world_T_object)  # nothing changed
 
 

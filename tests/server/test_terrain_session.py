@@ -8,14 +8,13 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from server.console_models import PlacementChanged, Regime, TerrainChanged
-from server.session import Session
-from server.terrain_layer import TerrainLayer
+from server.console import PlacementChanged, Regime, Session, TerrainChanged
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.collision import SceneModel
 from shared.errors import InputError
 from shared.paths import ASSETS_DIR
 from shared.terrain.cell import load_cell_terrain
+from shared.terrain.ground import GroundChecker
 
 ROVER_TERRAIN = ASSETS_DIR / "cells" / "rover_terrain.toml"
 # found by sampling the joint ranges: the instrument arm's last link lies on the ground
@@ -38,27 +37,27 @@ def session(rover_cell):
 
 
 def test_the_generic_scene_leaves_the_terrain_to_its_own_tree(session) -> None:
-    assert session.terrain is not None
-    assert "terrain" not in {b.name for b in session._scene.bodies}
+    assert session.terrain.available
+    assert "terrain" not in {b.name for b in session.arm.collision.scene.bodies}
     with pytest.raises(InputError, match="unknown object to exclude .nonexistent."):
         SceneModel.from_cell(session.cell, exclude=("nonexistent",))
 
 
 def test_arm_on_the_ground_is_a_collision_with_red_triangles(session, rover_cell) -> None:
     _, _, terrain = rover_cell
-    clear = session.terrain_view()
+    clear = session.terrain.view()
     assert not clear.in_collision and clear.distance > 0 and not clear.contact_corners
-    assert not session.collision_view().colliding
+    assert not session.arm.collision_view().colliding
     events = []
     session.subscribe_events(events.append)
-    session.set_q(Q_ON_GROUND)
-    view = session.terrain_view()
+    session.arm.set_q(Q_ON_GROUND)
+    view = session.terrain.view()
     assert view.in_collision and view.distance <= 0
     expected = terrain.checker.contact_triangles(Q_ON_GROUND)
     assert len(view.contact_corners) == len(expected) > 0
     # the corners sent to the page are those triangles of the terrain mesh, in the world
     np.testing.assert_allclose(view.contact_corners, terrain.mesh.vertices[terrain.mesh.faces[expected]])
-    collision = session.collision_view()
+    collision = session.arm.collision_view()
     assert collision.colliding and ("link3", "terrain") in [tuple(p) for p in collision.pairs]
     assert collision.min_distance <= 0
     assert any(isinstance(e, TerrainChanged) and e.terrain.in_collision for e in events)
@@ -66,74 +65,74 @@ def test_arm_on_the_ground_is_a_collision_with_red_triangles(session, rover_cell
 
 def test_the_witness_segment_is_the_exact_distance(session, rover_cell) -> None:
     _, _, terrain = rover_cell
-    view = session.terrain_view()
-    exact = terrain.checker.exact_check(session.state.q)
+    view = session.terrain.view()
+    exact = terrain.checker.exact_check(session.arm.state.q)
     assert view.distance == pytest.approx(exact.distance)
     assert np.linalg.norm(np.subtract(view.world_p_arm, view.world_p_terrain)) == pytest.approx(view.distance, abs=1e-9)
 
 
 def test_sensors_are_sent_only_while_shown(session) -> None:
-    assert session.terrain_view().sensors is None
-    shown = session.set_terrain_sensors(True)
+    assert session.terrain.view().sensors is None
+    shown = session.terrain.set_sensors(True)
     assert shown.sensors is not None
     n = len(shown.sensors.starts)
     assert n == len(shown.sensors.ends) == len(shown.sensors.collides) > 0
-    session.set_q(Q_ON_GROUND)  # the sensors follow the arm
-    moved = session.terrain_view().sensors
+    session.arm.set_q(Q_ON_GROUND)  # the sensors follow the arm
+    moved = session.terrain.view().sensors
     assert moved is not None and moved.starts != shown.sensors.starts
-    assert session.set_terrain_sensors(False).sensors is None
+    assert session.terrain.set_sensors(False).sensors is None
 
 
 def test_placement_from_a_ground_position_enters_the_program(session) -> None:
     events = []
     session.subscribe_events(events.append)
-    placement = session.place_instrument(ground_xy=TARGET_XY)
+    placement = session.terrain.place_instrument(ground_xy=TARGET_XY)
     assert placement.candidates, placement.message
     assert placement.world_p_target[:2] == pytest.approx(list(TARGET_XY))
     assert any(isinstance(e, PlacementChanged) and e.placement == placement for e in events)
-    assert session.placement_view() == placement
-    program = session.insert_placement()
+    assert session.terrain.placement_view() == placement
+    program = session.terrain.insert_placement()
     texts = [e.text for e in program.entries if e.kind != "EMPTY"]
     assert texts == placement.program
     # the best configuration: C within 30 mm of the ground, the rest of the arm clear
-    session.goto_placement(0)
-    np.testing.assert_allclose(session.state.q, placement.candidates[0].q, atol=1e-12)
-    view = session.terrain_view()
+    session.terrain.goto_placement(0)
+    np.testing.assert_allclose(session.arm.state.q, placement.candidates[0].q, atol=1e-12)
+    view = session.terrain.view()
     assert 0.0 < view.head_distance <= 0.030
-    assert session.collision_view().zone is Regime.OPERATION  # the head is within the operation boundary
-    assert session.collision_view().zone_object == "terrain"
+    assert session.arm.collision_view().zone is Regime.OPERATION  # the head is within the operation boundary
+    assert session.arm.collision_view().zone_object == "terrain"
 
 
 def test_a_click_ray_picks_the_ground_point_below(session) -> None:
     below = session.terrain.ground_point(*TARGET_XY)
     picked = session.terrain.pick(np.array([TARGET_XY[0], TARGET_XY[1], 2.0]), np.array([0.0, 0.0, -3.0]))
     np.testing.assert_allclose(picked, below, atol=1e-9)
-    via_ray = session.place_instrument(ray=((TARGET_XY[0], TARGET_XY[1], 2.0), (0.0, 0.0, -1.0)))
+    via_ray = session.terrain.place_instrument(ray=((TARGET_XY[0], TARGET_XY[1], 2.0), (0.0, 0.0, -1.0)))
     np.testing.assert_allclose(via_ray.world_p_target, below, atol=1e-9)
     with pytest.raises(InputError, match="misses the ground"):
-        session.place_instrument(ray=((0.0, 0.0, 2.0), (0.0, 0.0, 1.0)))  # up into the sky
+        session.terrain.place_instrument(ray=((0.0, 0.0, 2.0), (0.0, 0.0, 1.0)))  # up into the sky
 
 
 def test_bad_targets_are_clear_errors(session) -> None:
     with pytest.raises(InputError, match="outside the terrain"):
-        session.place_instrument(ground_xy=(5.0, 5.0))
+        session.terrain.place_instrument(ground_xy=(5.0, 5.0))
     with pytest.raises(InputError, match="exactly one"):
-        session.place_instrument(ground_xy=TARGET_XY, world_p=(0.7, -0.1, 0.0))
+        session.terrain.place_instrument(ground_xy=TARGET_XY, world_p=(0.7, -0.1, 0.0))
     with pytest.raises(InputError, match="pick a target"):
-        session.insert_placement()
+        session.terrain.insert_placement()
 
 
 def test_preview_warns_when_a_statement_runs_the_arm_into_the_ground(session) -> None:
     q = np.degrees(Q_ON_GROUND)
-    session.insert(f"MOVE ({q[0]:.1f}, {q[1]:.1f}, {q[2]:.1f}) deg")
-    preview = session.begin_preview(0, 1)
+    session.program.insert(f"MOVE ({q[0]:.1f}, {q[1]:.1f}, {q[2]:.1f}) deg")
+    preview = session.preview.begin(0, 1)
     assert any(w.kind == "collision" and "terrain" in w.bodies for w in preview.warnings), preview.warnings
-    session.end_preview()
+    session.preview.end()
 
 
 def test_other_cells_have_no_terrain() -> None:
     cell = load_cell(DEFAULT_CELL)
-    assert TerrainLayer.for_cell(cell) is None
+    assert GroundChecker.for_cell(cell) is None
 
 
 def test_terrain_endpoints(rover_cell, tmp_path) -> None:

@@ -27,7 +27,6 @@ from fastapi.responses import RedirectResponse
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from server.viser_page import read_send_intervals_ms, served_page, unpack
 from server.viser_host import (
     CLIENT_BUILD_DIR,
     VISER_SUBPROTOCOL,
@@ -35,6 +34,7 @@ from server.viser_host import (
     start_viser,
     uvicorn_config_kwargs,
 )
+from server.viser_page import read_send_intervals_ms, served_page, unpack
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -1,96 +1,70 @@
-"""Typed views and events of the console session (what the web page and API clients see).
+"""Typed views of the console session: what the web page, the HTTP API and the event stream show.
 
-Why a module of its own: the session (``server.session``) produces these, the HTTP API
-(``server.api``) returns them, the WebSocket ``/api/events`` streams them, and the viser panels
-(``webui``) read them; one definition each keeps the four in step. Every value is SI (rad, m, s)
-unless the field name says otherwise (``_deg``, ``_mm``). Times are seconds on the console's
-clock: ``*_at`` fields are Unix wall-clock seconds (for display), ``*_s`` are durations.
-
-Events are a discriminated union on ``type`` (:data:`SessionEvent`); a listener registered with
-``Session.subscribe_events`` receives each one after the session's lock is released.
+Why a module of its own: the console's parts (``server.console``) produce these, the HTTP API
+(``server.api``) returns them, the WebSocket ``/api/events`` streams them inside events
+(``server.console.events``), and the viser panels (``webui``) read them; one definition each
+keeps the four in step. Every value is SI (rad, m, s) unless the field name says otherwise
+(``_deg``, ``_mm``). ``*_at`` fields are Unix wall-clock seconds (for display), ``*_s`` are
+durations.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
-from enum import Enum
-from typing import Annotated, Literal, Union
+from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from shared.errors import TeleprogError
+from server.console.enums import DisplayMode, Regime, SentStatus
 from shared.language.statements import Statement
-from shared.program.rules import Refusal
+from shared.robots.jog import JogResult
+
+__all__ = [
+    "VirtualState",
+    "ArmView",
+    "RefusalView",
+    "StatementView",
+    "ProgramView",
+    "PreviewWarning",
+    "PreviewView",
+    "SentView",
+    "SentListView",
+    "LinkView",
+    "RemoteArmView",
+    "PredictedPathView",
+    "CollisionView",
+    "RegimeView",
+    "DivergenceView",
+    "Caller",
+    "ControlTakeover",
+    "ControlView",
+    "ControlGrant",
+    "TerrainSensorsView",
+    "TerrainView",
+    "PlacementCandidateView",
+    "PlacementView",
+    "LocatedView",
+    "SessionSnapshot",
+    "matrix_list",
+]
+
+
+
+@dataclass(frozen=True)
+class VirtualState:
+    """The virtual arm's fast path (the 3D scene draws every change): joint vector (rad), the
+    tool point's pose in the world, the last jog's outcome and a version that counts changes."""
+
+    q: np.ndarray
+    world_T_tcp: np.ndarray
+    last_jog: JogResult | None = None
+    version: int = 0
 
 
 class _View(BaseModel):
     model_config = ConfigDict(frozen=True)
-
-
-# ----------------------------------------------------------------------------------- errors
-
-
-class ConflictError(TeleprogError):
-    """The action is well-formed but the session's state does not allow it now (HTTP 409):
-    another client holds control, a preview is running, the regime forbids it, ..."""
-
-
-class RefusedByRule(ConflictError):
-    """An editor operation refused by a rule of thesis §4.3.6 (HTTP 409); ``refusal`` names it."""
-
-    def __init__(self, refusal: Refusal) -> None:
-        self.refusal = refusal
-        super().__init__(str(refusal))
-
-
-class NotConnectedError(ConflictError):
-    """An action that needs the robot, while the console has no robot configured (HTTP 409)."""
-
-
-class ControlLockError(ConflictError):
-    """Another client holds the control lock, or the token presented is not the holder's (HTTP 409)."""
-
-
-# ----------------------------------------------------------------------------------- enums
-
-
-class Regime(str, Enum):
-    """Segmented composite control (§4.2.1): how statements reach the robot."""
-
-    FREE = "free"  # online: generated statements stream to the robot as they are made
-    QUASI = "quasi"  # offline: program, preview, confirm, send
-    OPERATION = "operation"  # single step: one statement at a time, force mode, strict UNTIL
-
-
-class DisplayMode(str, Enum):
-    """Display modes of §4.3.7."""
-
-    TELEPROGRAMMING = "teleprogramming"  # the operator drives the virtual arm
-    TASK_PREVIEW = "task_preview"  # the simulator plays statements on the virtual arm
-    TELEPRESENCE = "telepresence"  # the remote scene rebuilt from telemetry
-
-
-class SentStatus(str, Enum):
-    """Status of a submitted statement; the last five are final."""
-
-    SENDING = "sending"  # handed to the link, the robot has not answered yet
-    RECEIVED = "received"
-    RUNNING = "running"
-    DONE = "done"
-    FAILED = "failed"
-    SKIPPED = "skipped"
-    ABORTED = "aborted"
-    REJECTED = "rejected"  # the robot refused the whole communication (e.g. its buffer was full)
-    UNKNOWN = "unknown"  # the robot restarted before its final status: it may or may not have run
-
-
-FINAL_SENT = frozenset(
-    {SentStatus.DONE, SentStatus.FAILED, SentStatus.SKIPPED, SentStatus.ABORTED, SentStatus.REJECTED, SentStatus.UNKNOWN}
-)
-
-
-# ----------------------------------------------------------------------------------- views
 
 
 class ArmView(_View):
@@ -388,93 +362,6 @@ class SessionSnapshot(_View):
     control: ControlView
 
 
-# ----------------------------------------------------------------------------------- events
-
-
-class ArmChanged(_View):
-    type: Literal["arm"] = "arm"
-    arm: ArmView
-
-
-class ProgramChanged(_View):
-    type: Literal["program"] = "program"
-    program: ProgramView
-
-
-class PreviewChanged(_View):
-    type: Literal["preview"] = "preview"
-    preview: PreviewView
-
-
-class SentChanged(_View):
-    type: Literal["sent"] = "sent"
-    sent: SentListView
-
-
-class LinkChanged(_View):
-    type: Literal["link"] = "link"
-    link: LinkView
-
-
-class RemoteArmChanged(_View):
-    type: Literal["remote"] = "remote"
-    remote: RemoteArmView
-
-
-class PredictedPathChanged(_View):
-    type: Literal["predicted"] = "predicted"
-    predicted: PredictedPathView
-
-
-class CollisionChanged(_View):
-    type: Literal["collision"] = "collision"
-    collision: CollisionView
-
-
-class RegimeChanged(_View):
-    type: Literal["regime"] = "regime"
-    regime: RegimeView
-
-
-class DisplayModeChanged(_View):
-    type: Literal["display"] = "display"
-    display: DisplayMode
-
-
-class DivergenceChanged(_View):
-    type: Literal["divergence"] = "divergence"
-    divergence: DivergenceView
-
-
-class TerrainChanged(_View):
-    type: Literal["terrain"] = "terrain"
-    terrain: TerrainView
-
-
-class PlacementChanged(_View):
-    type: Literal["placement"] = "placement"
-    placement: PlacementView | None
-
-
-class ControlChanged(_View):
-    type: Literal["control"] = "control"
-    control: ControlView
-
-
-class Notice(_View):
-    """A sentence for the operator: a refused operation, a rejected communication, a warning."""
-
-    type: Literal["notice"] = "notice"
-    level: Literal["info", "warning", "error"]
-    message: str
-    rule: str | None = None
-
-
-SessionEvent = Annotated[
-    Union[
-        ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
-        PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
-        ControlChanged, TerrainChanged, PlacementChanged, Notice,
-    ],
-    Field(discriminator="type"),
-]
+def matrix_list(a: np.ndarray) -> list[list[float]]:
+    """A pose matrix as the nested lists a view holds."""
+    return np.asarray(a, dtype=float).tolist()

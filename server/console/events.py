@@ -1,0 +1,136 @@
+"""Typed events of the console session: a discriminated union on ``type`` (:data:`SessionEvent`).
+A listener registered on the session's bus (``Session.subscribe_events``) receives each one after
+the session's lock is released."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field
+
+from server.console.enums import DisplayMode
+from server.console.views import (
+    ArmView,
+    CollisionView,
+    ControlView,
+    DivergenceView,
+    LinkView,
+    PlacementView,
+    PredictedPathView,
+    PreviewView,
+    ProgramView,
+    RegimeView,
+    RemoteArmView,
+    SentListView,
+    TerrainView,
+    _View,
+)
+
+__all__ = [
+    "ArmChanged",
+    "ProgramChanged",
+    "PreviewChanged",
+    "SentChanged",
+    "LinkChanged",
+    "RemoteArmChanged",
+    "PredictedPathChanged",
+    "CollisionChanged",
+    "RegimeChanged",
+    "DisplayModeChanged",
+    "DivergenceChanged",
+    "TerrainChanged",
+    "PlacementChanged",
+    "ControlChanged",
+    "Notice",
+    "SessionEvent",
+]
+
+
+
+class ArmChanged(_View):
+    type: Literal["arm"] = "arm"
+    arm: ArmView
+
+
+class ProgramChanged(_View):
+    type: Literal["program"] = "program"
+    program: ProgramView
+
+
+class PreviewChanged(_View):
+    type: Literal["preview"] = "preview"
+    preview: PreviewView
+
+
+class SentChanged(_View):
+    type: Literal["sent"] = "sent"
+    sent: SentListView
+
+
+class LinkChanged(_View):
+    type: Literal["link"] = "link"
+    link: LinkView
+
+
+class RemoteArmChanged(_View):
+    type: Literal["remote"] = "remote"
+    remote: RemoteArmView
+
+
+class PredictedPathChanged(_View):
+    type: Literal["predicted"] = "predicted"
+    predicted: PredictedPathView
+
+
+class CollisionChanged(_View):
+    type: Literal["collision"] = "collision"
+    collision: CollisionView
+
+
+class RegimeChanged(_View):
+    type: Literal["regime"] = "regime"
+    regime: RegimeView
+
+
+class DisplayModeChanged(_View):
+    type: Literal["display"] = "display"
+    display: DisplayMode
+
+
+class DivergenceChanged(_View):
+    type: Literal["divergence"] = "divergence"
+    divergence: DivergenceView
+
+
+class TerrainChanged(_View):
+    type: Literal["terrain"] = "terrain"
+    terrain: TerrainView
+
+
+class PlacementChanged(_View):
+    type: Literal["placement"] = "placement"
+    placement: PlacementView | None
+
+
+class ControlChanged(_View):
+    type: Literal["control"] = "control"
+    control: ControlView
+
+
+class Notice(_View):
+    """A sentence for the operator: a refused operation, a rejected communication, a warning."""
+
+    type: Literal["notice"] = "notice"
+    level: Literal["info", "warning", "error"]
+    message: str
+    rule: str | None = None
+
+
+SessionEvent = Annotated[
+    Union[
+        ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
+        PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
+        ControlChanged, TerrainChanged, PlacementChanged, Notice,
+    ],
+    Field(discriminator="type"),
+]

@@ -1,0 +1,295 @@
+"""The program desk (thesis §4.3.4-4.3.6): the program editor and its rules, automatic generation
+from the operator's strokes, program files, and where the program starts.
+
+* The editor (``shared.program.editor``) applies every operation on a copy and keeps it only when
+  the operation and the program's view both succeed: a refused or failed edit changes nothing.
+* Generation (``shared.program.generator``): every change of the virtual arm is a sample of the
+  operator's stroke; letting go flushes the open segment. Generated statements go to the
+  program's end; in the free regime they stream to the robot unless their path is hazardous.
+* The start: the program plans from ``start_q`` (the model's home, where the statements sent are
+  predicted to end, or the robot's reported state after a re-sync); ``start_unknown`` says a
+  prediction could not be made (a task, a stop or a failure came first).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import PurePath
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from server.console.context import ConsoleContext
+from server.console.enums import Regime
+from server.console.errors import ConflictError, RefusedByRule
+from server.console.events import Notice, ProgramChanged, SessionEvent
+from server.console.statement_checks import checked_statement
+from server.console.views import Caller, ProgramView, StatementView, VirtualState
+from shared.errors import InputError, TeleprogError
+from shared.language.formatter import format_program, format_statement
+from shared.language.parser import parse_json, parse_program, parse_statement
+from shared.language.statements import Speed, Statement, Until, program_to_json
+from shared.program.editor import KEEP, Editor, ProgramState, Refusal
+from shared.program.generator import ControlMode, ProgramGenerator, RobotSample
+
+if TYPE_CHECKING:
+    from server.console.control import ControlLock
+    from server.console.dispatch import Dispatch
+    from server.console.modes import Modes
+    from server.console.previewer import Previewer
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ProgramStart:
+    """Where the program starts: a joint vector, where it came from, and whether it is known."""
+
+    q: np.ndarray
+    source: str = "model"  # model | predicted | telemetry
+    unknown: bool = False
+    """The predicted end lies after a task, a stop or a failure whose end only the robot knows."""
+
+
+def _copy_editor(editor: Editor) -> Editor:
+    """An editor with the same state and its own copy of the undo/redo history (the states in
+    it are immutable), to try an operation on."""
+    trial = copy.copy(editor)
+    trial._undo = list(editor._undo)  # noqa: SLF001 - the editor's own lists, copied not changed
+    trial._redo = list(editor._redo)  # noqa: SLF001
+    return trial
+
+
+class ProgramDesk:
+    """Editor, generator, files and the program's start."""
+
+    def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes) -> None:
+        self._ctx = ctx
+        self._control, self._modes = control, modes
+        self.preview: Previewer | None = None  # set by the session
+        self.dispatch: Dispatch | None = None  # set by the session
+        self._editor = Editor()
+        self._auto = False
+        cell = ctx.cell
+        self._generator = ProgramGenerator(ctx.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
+        self._stroke_mode: ControlMode | None = None
+        self.start = ProgramStart(cell.q_home.copy())
+        self._confirmed: tuple[int, int, tuple] | None = None
+
+    # -- reading -----------------------------------------------------------------------------
+    @property
+    def state(self) -> ProgramState:
+        with self._ctx.lock:
+            return self._editor.state
+
+    def view(self) -> ProgramView:
+        with self._ctx.lock:
+            st = self._editor.state
+            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s) for i, s in enumerate(st.statements)]
+            entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
+            e = self._editor
+            return ProgramView(
+                entries=entries, selected=st.selected_index, empty_index=st.empty_index, preview=st.preview,
+                can_undo=e.can_undo, can_redo=e.can_redo, undo_label=e.undo_label, redo_label=e.redo_label,
+                auto_generate=self._auto, start_q=self.start.q.tolist(), start_source=self.start.source,
+                confirmed=self.confirmed_range(),
+            )
+
+    def confirmed_range(self) -> tuple[int, int] | None:
+        """The range previewed to its end without warnings, while its statements are unchanged."""
+        with self._ctx.lock:
+            c = self._confirmed
+            if c is None:
+                return None
+            start, stop, statements = c
+            return (start, stop) if tuple(self._editor.state.statements[start:stop]) == statements else None
+
+    def confirm(self, start: int, stop: int) -> None:
+        """The range was previewed to its end without warnings (under the lock)."""
+        self._confirmed = (start, stop, tuple(self._editor.state.statements[start:stop]))
+
+    def withdraw_confirmation(self) -> None:
+        self._confirmed = None
+
+    # -- editing -----------------------------------------------------------------------------
+    def set_auto_generate(self, on: bool, *, client: Caller | str | None = None) -> ProgramView:
+        """Switch automatic generation; switching on anchors the generator at the arm's state."""
+        with self._ctx.lock:
+            self._control.check(client)
+            flushed = self._generator.flush() if self._auto and not on else []
+            self._auto = bool(on)
+            self._generator.reset()
+            self._stroke_mode = None
+        self.take_generated(flushed)
+        view = self.view()
+        self._ctx.bus.emit([ProgramChanged(program=view)])
+        return view
+
+    def select(self, index: int, *, client: Caller | str | None = None) -> ProgramView:
+        """Select statement ``index`` (0-based; ``empty_index`` is the trailing empty one). Allowed while previewing."""
+        return self._edit(lambda e: e.select(index), client)
+
+    def insert(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
+        """Insert a statement (a model, or its text form) before the selection."""
+        self._control.check(client)  # before any work on the caller's input
+        st = self._statement(statement)
+        return self._edit(lambda e: e.insert(st), client)
+
+    def delete(self, *, client: Caller | str | None = None) -> ProgramView:
+        """Delete the selected statement."""
+        return self._edit(lambda e: e.delete(), client)
+
+    def modify(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
+        """Replace the selected statement by one of the same kind (§4.3.6 rules)."""
+        self._control.check(client)
+        st = self._statement(statement)
+        return self._edit(lambda e: e.modify(st), client)
+
+    def modify_conditions(self, *, speed: Speed | None | object = KEEP, until: Until | None | object = KEEP,
+                          client: Caller | str | None = None) -> ProgramView:
+        """Set (a value), clear (``None``) or keep (``KEEP``) the WITH speed / UNTIL of the selected action."""
+        return self._edit(lambda e: e.modify_conditions(speed, until), client)  # type: ignore[arg-type]
+
+    def undo(self, *, client: Caller | str | None = None) -> ProgramView:
+        return self._edit(lambda e: e.undo(), client)
+
+    def redo(self, *, client: Caller | str | None = None) -> ProgramView:
+        return self._edit(lambda e: e.redo(), client)
+
+    def load(self, text: str, filename: str = "program.tp", *, client: Caller | str | None = None) -> ProgramView:
+        """Replace the program by a program file's content (text form, or JSON when the name ends
+        in .json). A broken file raises ``InputError`` naming file, line and column; the current
+        program is then kept."""
+        name = PurePath(filename).name or "program"
+        parsed = parse_json(text, name) if name.lower().endswith(".json") else parse_program(text, name)
+        if not parsed.ok:
+            lines = parsed.error_lines()
+            more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
+            raise InputError(lines[0] + more)
+        state = ProgramState.of(parsed.statements)  # InputError when the rules are broken
+        for i, st in enumerate(parsed.statements):
+            try:
+                checked_statement(st)
+            except TeleprogError as exc:
+                raise InputError(f"{name}: statement {i + 1}: {exc}") from None
+        with self._ctx.lock:
+            self._control.check(client)
+            self.check_not_previewing("load a program")
+            self._editor = Editor(state)
+            self._confirmed = None
+        view = self.view()
+        self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
+        return view
+
+    def save(self, fmt: str = "text") -> str:
+        """The program's file content: ``text`` (the language) or ``json``."""
+        with self._ctx.lock:
+            statements = list(self._editor.state.statements)
+        if fmt == "json":
+            return json.dumps(program_to_json(statements), indent=2) + "\n"
+        if fmt == "text":
+            return format_program(statements)
+        raise InputError(f"unknown program format {fmt!r}; valid: text, json")
+
+    def _statement(self, statement: Statement | str) -> Statement:
+        """The statement, checked as a program file's would be before it enters the program."""
+        if isinstance(statement, str):
+            return parse_statement(statement)
+        return checked_statement(statement)
+
+    def check_not_previewing(self, what: str) -> None:
+        busy = self.preview.running_range()
+        if busy is not None:
+            raise ConflictError(f"cannot {what} while statements {busy[0] + 1}..{busy[1]} are being previewed; only selection is allowed")
+
+    def _edit(self, op: Callable[[Editor], object], client: Caller | str | None) -> ProgramView:
+        with self._ctx.lock:
+            self._control.check(client)
+            before = self._editor
+            trial = _copy_editor(before)
+            try:
+                result = op(trial)
+                refusal = result if isinstance(result, Refusal) else None
+                self._editor = trial
+                view = self.view()
+            except Exception:
+                self._editor = before
+                raise
+        if refusal is not None:
+            self._ctx.bus.emit([Notice(level="warning", message=refusal.message, rule=refusal.rule.value)])
+            raise RefusedByRule(refusal)
+        self._ctx.bus.emit([ProgramChanged(program=view)])
+        return view
+
+    # -- the editor, for the other parts (under the lock) ----------------------------------------
+    @property
+    def editor(self) -> Editor:
+        return self._editor
+
+    # -- generation ----------------------------------------------------------------------------
+    def sample_stroke(self, before: VirtualState, after: VirtualState, mode: ControlMode) -> list[Statement]:
+        """Feed one change of the virtual arm to the generator (under the lock); what it made."""
+        if not self._auto:
+            return []
+        generated: list[Statement] = []
+        now = self._ctx.clock()
+        if self._stroke_mode is not None and self._stroke_mode is not mode:
+            generated += self._generator.flush()
+        if self._stroke_mode is not mode:
+            # a fresh stroke: the state before it is the stroke's first sample
+            generated += self._generator.feed(RobotSample(t=now - 1e-3, q=before.q.copy(), mode=mode, world_T_tool=before.world_T_tcp))
+            self._stroke_mode = mode
+        generated += self._generator.feed(RobotSample(t=now, q=after.q.copy(), mode=mode, world_T_tool=after.world_T_tcp))
+        return generated
+
+    def end_stroke(self, *, client: Caller | str | None = None) -> ProgramView:
+        """The operator let go: close the open generated segment."""
+        with self._ctx.lock:
+            self._control.check(client)
+            statements = self._generator.flush() if self._auto else []
+            self._stroke_mode = None  # the next stroke starts with the state it starts from
+        self.take_generated(statements)
+        return self.view()
+
+    def reset_generator(self) -> None:
+        """Anchor generation afresh (a re-sync; under the lock)."""
+        self._generator.reset()
+        self._stroke_mode = None
+
+    def take_generated(self, statements: list[Statement]) -> None:
+        """Put generated statements at the program's end; in the free regime stream them."""
+        if not statements:
+            return
+        notices: list[SessionEvent] = []
+        with self._ctx.lock:
+            editor = self._editor
+            keep = editor.state.selected_index
+            at_end = keep == editor.state.empty_index
+            inserted = 0
+            for st in statements:
+                if editor.state.previewing:
+                    break
+                editor.select_empty()
+                result = editor.insert(st)
+                if isinstance(result, Refusal):
+                    notices.append(Notice(level="warning", message=f"generated {st.kind} not added: {result.message}", rule=result.rule.value))
+                    break
+                inserted += 1
+            if not at_end and keep < editor.state.empty_index:
+                editor.select(keep)
+            stream = inserted and self._modes.regime is Regime.FREE and self.dispatch.connected
+        self._ctx.bus.emit([ProgramChanged(program=self.view()), *notices])
+        if stream:
+            hazard = self.preview.hazard()
+            if hazard is not None:
+                self._ctx.bus.emit([Notice(level="warning", message=(
+                    f"held back, not sent to the robot: {hazard}; the program keeps it (undo, edit or delete it)"))])
+                return
+            try:
+                self.dispatch.submit(0, self.state.empty_index, client=self._control.holder)
+            except TeleprogError as exc:
+                self._ctx.bus.emit([Notice(level="warning", message=f"streaming refused: {exc}")])

@@ -1,0 +1,160 @@
+"""Recovery commands (thesis §4.2.3): STOP, resume, skip, abort, and backing away from a contact.
+
+STOP is for anybody, whoever holds control; the others need control. Each is a priority command
+on the robot's channel, acknowledged after a round trip; the console lists it as pending until
+the acknowledgement, never waits for it in a page handler, and says what the robot did.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from server.console.context import ConsoleContext
+from server.console.enums import SentStatus
+from server.console.errors import ConflictError
+from server.console.events import LinkChanged, Notice, SentChanged
+from server.console.views import Caller, LinkView, SentListView
+from shared.language.formatter import format_statement
+from shared.language.statements import Draw, Mode, SetMode, Statement
+from shared.motion.back_away import back_away_motion
+from shared.wire.messages import RecoveryAck, RobotState
+
+if TYPE_CHECKING:
+    from server.console.control import ControlLock
+    from server.console.dispatch import Dispatch
+    from server.console.link_status import LinkStatus
+    from server.console.program_desk import ProgramDesk
+    from server.console.remote import RemoteMirror
+
+
+class Recovery:
+    """STOP, resume, skip, abort, back away."""
+
+    def __init__(self, ctx: ConsoleContext, control: ControlLock, desk: ProgramDesk, dispatch: Dispatch, remote: RemoteMirror, link: LinkStatus) -> None:
+        self._ctx = ctx
+        self._control, self._desk, self._dispatch, self._remote, self._link = control, desk, dispatch, remote, link
+        self.pending: dict[int, str] = {}
+        self._count = 0
+
+    def stop(self, *, client: Caller | str | None = None) -> LinkView:
+        """STOP: the robot halts and waits. Anybody may press STOP, whoever holds control."""
+        return self._recover("stop", lambda r: r.stop(), None)
+
+    def resume(self, *, client: Caller | str | None = None) -> LinkView:
+        return self._recover("resume", lambda r: r.resume(), client)
+
+    def skip(self, number: int | None = None, *, client: Caller | str | None = None) -> LinkView:
+        """Skip statement ``number`` (default: the one running, else the first not final)."""
+        with self._ctx.lock:
+            if number is None:
+                frame = self._remote.telemetry
+                if frame is not None and frame.statement:
+                    number = frame.statement
+                else:
+                    number = next((s.number for s in self._dispatch.sent if not s.final and s.number is not None), None)
+            if number is None:
+                raise ConflictError("nothing to skip: no statement is running or waiting")
+        n = int(number)
+        return self._recover(f"skip {n}", lambda r: r.skip(n), client)
+
+    def abort(self, *, client: Caller | str | None = None) -> LinkView:
+        """Flush every statement the robot has not finished."""
+        return self._recover("abort", lambda r: r.abort(), client)
+
+    def back_away_motion(self) -> Draw:
+        """The motion that backs the remote arm out of a contact fault
+        (``shared.motion.back_away``): refused unless the robot reports a fault, or when no
+        motion can be planned from where it stopped."""
+        ctx = self._ctx
+        with ctx.lock:
+            frame = self._remote.telemetry
+            if frame is None:
+                raise ConflictError("no telemetry from the robot yet: back away needs to know where it stopped")
+            if frame.state is not RobotState.FAULT:
+                raise ConflictError(f"back away is for a robot in fault after a contact; the robot is {frame.state.name.lower()}")
+            q = ctx.robot.as_q(np.array(frame.q, dtype=float))
+            failed = max((s for s in self._dispatch.sent if s.status is SentStatus.FAILED), key=lambda s: s.finished_at or 0.0, default=None)
+        answer = back_away_motion(ctx.robot, ctx.cell, ctx.frames, q, failed.statement if failed is not None else None,
+                                  distance=ctx.settings.back_away_distance, speed=ctx.settings.back_away_speed)
+        if answer.motion is None:
+            raise ConflictError(f"cannot back away from where the robot stopped: {answer.refusal}")
+        return answer.motion
+
+    def back_away(self, *, client: Caller | str | None = None) -> SentListView:
+        """After a contact fault, one click: abort what the robot has not finished (it waits in
+        fault until then), then send :meth:`back_away_motion`. The motion joins the sent list,
+        not the program; the program's start is unknown until a re-sync."""
+        motion = self.back_away_motion()
+        dispatch = self._dispatch
+        with self._ctx.lock:
+            self._control.check(client)
+            robot, loop = dispatch.need_robot()
+            outgoing: list[Statement] = [motion]
+            if dispatch.robot_mode is Mode.FORCE:
+                outgoing.insert(0, SetMode(mode=Mode.POSITION))
+                dispatch.robot_mode = Mode.POSITION
+            comm = dispatch.open_communication(outgoing)
+            self._desk.start.unknown = True  # the program goes on from where the robot ends: re-sync
+            key = self._open("abort before back away")
+
+        async def run() -> None:
+            try:
+                await robot.abort()
+            except Exception as exc:  # noqa: BLE001 - shown, and the motion is not sent
+                self._close(key)
+                dispatch.finish_communication(comm, SentStatus.REJECTED, f"abort failed: {exc}")
+                self._ctx.bus.emit([Notice(level="error", message=f"back away not sent: abort failed: {exc}")])
+                return
+            self._close(key)
+            self._ctx.bus.emit([LinkChanged(link=self._link.view())])
+            await dispatch.send(robot, comm, outgoing)
+
+        asyncio.run_coroutine_threadsafe(run(), loop)
+        view = dispatch.view()
+        self._ctx.bus.emit([SentChanged(sent=view), LinkChanged(link=self._link.view()),
+                            Notice(level="info", message=f"backing away: abort, then {format_statement(motion)}")])
+        return view
+
+    def _open(self, what: str) -> int:
+        self._count += 1
+        self.pending[self._count] = what
+        return self._count
+
+    def _close(self, key: int) -> None:
+        with self._ctx.lock:
+            self.pending.pop(key, None)
+
+    def _recover(self, what: str, call: Callable[[object], Awaitable[RecoveryAck]], client: Caller | str | None) -> LinkView:
+        with self._ctx.lock:
+            if what != "stop":
+                self._control.check(client)
+            robot, loop = self._dispatch.need_robot()
+            key = self._open(what)
+
+        async def run() -> None:
+            t0 = self._ctx.clock()
+            try:
+                ack = await call(robot)
+            except Exception as exc:  # noqa: BLE001
+                self._ctx.bus.emit([Notice(level="error", message=f"{what} failed: {exc}")])
+                ack = None
+            else:
+                self._dispatch.note_round_trip(self._ctx.clock() - t0)
+            with self._ctx.lock:
+                self.pending.pop(key, None)
+                if ack is not None:
+                    self._remote.take_reported_objects(ack.robot)
+            if ack is not None:
+                level = "info" if ack.applied else "warning"
+                detail = f": {ack.detail}" if ack.detail else ""
+                self._ctx.bus.emit([Notice(level=level, message=f"robot {'applied' if ack.applied else 'did not apply'} {what}{detail}")])
+            self._ctx.bus.emit([LinkChanged(link=self._link.view())])
+
+        asyncio.run_coroutine_threadsafe(run(), loop)
+        view = self._link.view()
+        self._ctx.bus.emit([LinkChanged(link=view)])
+        return view

@@ -1,0 +1,49 @@
+"""What the console needs of a robot client: the seam between the session and the link.
+
+``server.robot_client.RobotClient`` satisfies :class:`RobotLink` over real WebSockets; tests hand
+the session an in-memory fake of the same protocol. Callbacks (``on_report`` and friends) run on
+the client's asyncio loop; the coroutines are scheduled there by the session and never waited
+for from a page handler.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import Protocol, runtime_checkable
+
+from server.robot_client import ChannelHealth
+from shared.language.statements import Statement
+from shared.wire.messages import RecoveryAck, StatusReport
+from shared.wire.session import SessionRestart
+from shared.wire.telemetry import TelemetryFrame
+
+
+class ConnectedFlag(Protocol):
+    def is_set(self) -> bool: ...
+
+
+@runtime_checkable
+class RobotLink(Protocol):
+    """A robot's command and telemetry channels, as the console uses them."""
+
+    url: str
+    reconnects: int
+    connected: ConnectedFlag
+
+    def health(self) -> ChannelHealth: ...
+
+    def on_report(self, listener: Callable[[StatusReport], None]) -> None: ...
+
+    def on_telemetry(self, listener: Callable[[TelemetryFrame], None]) -> None: ...
+
+    def on_restart(self, listener: Callable[[SessionRestart], None]) -> None: ...
+
+    async def submit(self, statements: Iterable[Statement], timeout: float | None = None) -> tuple[int, ...]: ...
+
+    async def stop(self, timeout: float | None = None) -> RecoveryAck: ...
+
+    async def resume(self, timeout: float | None = None) -> RecoveryAck: ...
+
+    async def skip(self, number: int, timeout: float | None = None) -> RecoveryAck: ...
+
+    async def abort(self, timeout: float | None = None) -> RecoveryAck: ...

@@ -1,0 +1,33 @@
+"""Checks a statement passes before it enters the program or leaves for the robot, whatever
+built it (a parser, a generator, an API body): validated again by its own model and written as
+text once, so nothing the program view cannot show, or the robot cannot read, gets in."""
+
+from __future__ import annotations
+
+from pydantic import ValidationError
+
+from shared.errors import InputError
+from shared.language.formatter import format_statement
+from shared.language.statements import Statement
+
+
+def checked_statement(statement: Statement) -> Statement:
+    """``statement`` validated again by its own model and formatted once; ``InputError`` (a
+    validation error) or the formatter's error names what is wrong."""
+    try:
+        checked = type(statement).model_validate(statement.model_dump())
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first.get("loc", ()))
+        raise InputError(f"{statement.kind}: {where + ': ' if where else ''}{first.get('msg', 'invalid')}") from None
+    format_statement(checked)  # raises InputError for what cannot be written (a NaN, say)
+    return checked
+
+
+def statement_text(statement: Statement) -> str:
+    """The statement as text; one that cannot be written (a value no statement may hold) is
+    named by its kind and why, so a list of what was sent can always be shown."""
+    try:
+        return format_statement(statement)
+    except Exception as exc:  # noqa: BLE001 - a list of what was sent must never fail to render
+        return f"{getattr(statement, 'kind', type(statement).__name__)} (cannot be written: {exc})"

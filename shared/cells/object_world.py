@@ -1,0 +1,120 @@
+"""Where a cell's movable objects are and which one a gripper holds: one model for the virtual
+world the operator edits and for the remote world the robot reports.
+
+Objects start at their cell pose. A grasp fixes the held object to the tool point (``tcp_T_held``)
+so it rides with the arm; a release (or an insertion) leaves it where the tool put it. Task
+calls name the object case-insensitively (``GRASP(peg)``): ``apply_task`` reads grasp*,
+release* and insert* tasks (thesis §4.3.4's task vocabulary), the way the telerobot does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from shared.spatial import invert
+
+
+class ObjectWorld:
+    """Object poses (world) and the held object of one side (virtual or remote)."""
+
+    def __init__(self, cell) -> None:
+        self.cell = cell
+        self.placed: dict[str, np.ndarray] = {}
+        """world_T_object of objects moved from their cell pose and not held."""
+        self.held: str | None = None
+        self.tcp_T_held: np.ndarray | None = None
+
+    # -- reading -----------------------------------------------------------------------------
+    def resolve(self, name: str) -> str | None:
+        """The cell's spelling of an object name, or None when the cell has no such object."""
+        for n in self.cell.object_names:
+            if n.lower() == name.lower():
+                return n
+        return None
+
+    def world_T_object(self, name: str, world_T_tcp: np.ndarray | None = None) -> np.ndarray:
+        """Where ``name`` is: riding with the tool at ``world_T_tcp`` when held (and the tool pose
+        is given), else where it was left, else its cell pose."""
+        if name == self.held and self.tcp_T_held is not None and world_T_tcp is not None:
+            return world_T_tcp @ self.tcp_T_held
+        if name in self.placed:
+            return self.placed[name]
+        return np.asarray(self.cell.object(name).world_T_object, dtype=float)
+
+    def poses(self, world_T_tcp: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Every moved object's pose, the held one at ``world_T_tcp`` (when given)."""
+        out = dict(self.placed)
+        if self.held is not None and self.tcp_T_held is not None and world_T_tcp is not None:
+            out[self.held] = world_T_tcp @ self.tcp_T_held
+        return out
+
+    # -- changing ----------------------------------------------------------------------------
+    def grasp(self, name: str, world_T_tcp: np.ndarray) -> None:
+        """Hold ``name`` where it is now, fixed to the tool at ``world_T_tcp``."""
+        here = self.world_T_object(name, world_T_tcp)
+        self.placed.pop(name, None)
+        self.held, self.tcp_T_held = name, invert(world_T_tcp) @ here
+
+    def release(self, world_T_tcp: np.ndarray) -> None:
+        """Leave the held object where the tool at ``world_T_tcp`` puts it."""
+        if self.held is not None and self.tcp_T_held is not None:
+            self.placed[self.held] = world_T_tcp @ self.tcp_T_held
+        self.held, self.tcp_T_held = None, None
+
+    def place(self, name: str, world_T_object: np.ndarray) -> None:
+        """Put a free object at a pose (a correction from a camera, say)."""
+        self.placed[name] = np.array(world_T_object, dtype=float)
+
+    def apply_task(self, task: str, args: tuple[str, ...] | list[str], world_T_tcp: np.ndarray) -> bool:
+        """What a finished task does to the objects, with the tool at ``world_T_tcp``: grasp*
+        holds its first argument, release* and insert* let go. True when something changed."""
+        name = task.lower()
+        if name.startswith("grasp") and args:
+            obj = self.resolve(args[0])
+            if obj is None:
+                return False
+            self.grasp(obj, world_T_tcp)
+            return True
+        if (name.startswith("release") or name.startswith("insert")) and self.held is not None:
+            self.release(world_T_tcp)
+            return True
+        return False
+
+    def take_reported(self, world_T_objects: Mapping[str, np.ndarray], held: str | None, world_T_tcp: np.ndarray) -> None:
+        """Take objects where a robot reports them: their poses, and the one it holds (fixed to
+        its tool at ``world_T_tcp``). Names the cell does not have are ignored."""
+        known = set(self.cell.object_names)
+        poses = {k: np.array(v, dtype=float) for k, v in world_T_objects.items() if k in known}
+        self.placed.update(poses)
+        self.held, self.tcp_T_held = None, None
+        if held is not None and held in poses:
+            self.held, self.tcp_T_held = held, invert(world_T_tcp) @ poses[held]
+            self.placed.pop(held, None)
+
+    def take(self, other: ObjectWorld, world_T_tcp_self: np.ndarray) -> None:
+        """Become ``other`` (a re-sync): its placed objects, its held object and grip. What this
+        side held and the other does not stays where this side's tool holds it now."""
+        if self.held is not None and self.tcp_T_held is not None:
+            self.placed[self.held] = world_T_tcp_self @ self.tcp_T_held
+        self.placed.update({k: v.copy() for k, v in other.placed.items()})
+        self.held = other.held
+        self.tcp_T_held = None if other.tcp_T_held is None else other.tcp_T_held.copy()
+        if self.held is not None:
+            self.placed.pop(self.held, None)
+
+    def divergence(self, expected: ObjectWorld) -> tuple[str | None, float]:
+        """The reported object (this side's) furthest from where ``expected`` has it: its name and
+        the distance between the origins (m); (name, inf) when one side holds an object and the
+        other does not (or another one); (None, 0) when all agree."""
+        if self.held != expected.held:
+            return self.held or expected.held, float("inf")
+        worst, name = 0.0, None
+        for obj, world_T in self.placed.items():
+            if obj == expected.held:
+                continue
+            d = float(np.linalg.norm(world_T[:3, 3] - expected.world_T_object(obj)[:3, 3]))
+            if d > worst:
+                worst, name = d, obj
+        return name, worst
