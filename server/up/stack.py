@@ -30,7 +30,7 @@ from shared.errors import InputError
 
 log = logging.getLogger(__name__)
 
-PROJECT_DIR = Path(__file__).resolve().parent.parent
+PROJECT_DIR = Path(__file__).resolve().parents[2]
 
 
 def _die_with_parent() -> None:  # runs in the child before exec

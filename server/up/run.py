@@ -2,10 +2,10 @@
 
 ``teleprog up`` starts the whole product: unless told otherwise (``--robot-url``: use a running
 robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
-as child processes (``server.stack``), connects the console to the link, watches them (a child
+as child processes (``server.up.stack``), connects the console to the link, watches them (a child
 that exits is logged once, shown in ``/api/link`` and started again on its port, unless
 ``--no-restart``), and stops the children when the console stops (Ctrl-C, SIGTERM).
-``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation_app``)
+``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation.app``)
 instead, with no robot and no link.
 """
 
@@ -54,7 +54,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
 
 def run_sedimentation(settings: ConsoleSettings) -> int:
     """``teleprog up --sedimentation``: the sedimentation view alone (no cell, no children)."""
-    from server.sedimentation_app import create_sedimentation_app
+    from server.sedimentation.app import create_sedimentation_app
 
     app = create_sedimentation_app(settings)  # bad starting values fail here, as one line
     signal.signal(signal.SIGTERM, _exit_quietly)
@@ -87,7 +87,7 @@ def run_console(args: argparse.Namespace) -> int:
     try:
         watch = None
         if not settings.no_robot and not settings.robot_url:
-            from server.stack import spawn_robot_and_link
+            from server.up.stack import spawn_robot_and_link
 
             robot, link, link_url = spawn_robot_and_link(
                 cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
@@ -118,7 +118,7 @@ def run_console(args: argparse.Namespace) -> int:
                     return
                 robot, link = watch
                 print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
-                from server.stack import ChildWatch
+                from server.up.stack import ChildWatch
 
                 watcher.append(ChildWatch(
                     list(watch), restart=settings.restart_children, start_timeout=settings.child_start_timeout_s
@@ -128,7 +128,7 @@ def run_console(args: argparse.Namespace) -> int:
         server.run()
         return 0 if server.started and not failed else 1
     finally:
-        from server.stack import stop_child
+        from server.up.stack import stop_child
 
         if watcher:
             children = watcher[0].stop()  # no restart while the children are stopped on purpose
