@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from shared.program.generator import ControlMode, GeneratorSettings, ProgramGenerator, RobotSample
+from shared.program.generator import GeneratorSettings, JogMode, ProgramGenerator, RobotSample
 from shared.robots.jog import JogFrames, jog_joint, jog_tool, world_T_tcp
 from shared.robots.loader import load_robot
 from shared.spatial import exp_so3, log_so3
@@ -112,7 +112,7 @@ def build_stream(seed: int = 0) -> Stream:
         pose = poses[i].copy()
         pose[:3, 3] += rng.normal(0.0, 0.05 * MM, 3)
         pose[:3, :3] = exp_so3(rng.normal(0.0, 0.02 * DEG, 3)) @ pose[:3, :3]
-        samples.append(RobotSample(i / RATE, noisy_q[i], ControlMode(modes[i]), base_T_tool=pose))
+        samples.append(RobotSample(i / RATE, noisy_q[i], JogMode(modes[i]), base_T_tool=pose))
     truth_arr = np.array([t for t in truth if t < n_total - 1])
     return Stream(samples, truth_arr, kinds)
 

@@ -37,6 +37,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+import rich
 import viser
 import websockets
 from fastapi import FastAPI, HTTPException, Request, WebSocket
@@ -68,9 +69,18 @@ def start_viser(*, label: str | None = None, verbose: bool = False) -> viser.Vis
     """Start viser on 127.0.0.1 on a free port; ``server.get_port()`` gives the port it bound.
 
     Never the default ``0.0.0.0:8080``: viser would be reachable from the network and, when 8080
-    is busy, silently take the next port. Stop it with ``server.stop()``.
+    is busy, silently take the next port. Unless ``verbose``, viser prints nothing while it
+    starts (no banner: the console prints the one URL to open). Stop it with ``server.stop()``.
     """
-    server = viser.ViserServer(host="127.0.0.1", port=0, label=label, verbose=verbose)
+    # viser 1.1.1 prints its banner (its private URL, which is not the page to open) with rich
+    # whatever ``verbose`` says; rich's console stays quiet while viser starts, unless verbose
+    console = rich.get_console()
+    was_quiet = console.quiet
+    console.quiet = was_quiet or not verbose
+    try:
+        server = viser.ViserServer(host="127.0.0.1", port=0, label=label, verbose=verbose)
+    finally:
+        console.quiet = was_quiet
     port = server.get_port()
     if port == 0:  # an older viser echoing the requested port instead of the bound one
         server.stop()

@@ -1,6 +1,6 @@
 """The particle-sedimentation view: ``build_sedimentation_view(server, runner)``.
 
-Draws what ``server.sedimentation.SedimentationRunner`` publishes; it computes nothing itself.
+Draws what ``server.sedimentation.runner.SedimentationRunner`` publishes; it computes nothing itself.
 The cube ``[0, L]^3`` is drawn as a unit wireframe cube centred on the origin (L changes with N
 and the density; a fixed on-screen size keeps the camera useful), bodies as one point cloud
 whose point size is the true sphere diameter (never below a visible minimum, so large N reads
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import viser
 
-from server.sedimentation import (
+from server.sedimentation.runner import (
     MAX_DENSITY,
     MAX_SPEED,
     MIN_BODIES,

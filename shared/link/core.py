@@ -3,7 +3,7 @@
 The thesis's trials put 3 s of delay on each way of the line (§4.6). ``LinkCore`` models one
 connection through such a line: messages go in with the time they were sent, deliveries come out
 when their due time has passed. It owns no clock and no socket, so the same code runs in virtual
-time in tests and under asyncio in ``server.link_relay``.
+time in tests and under asyncio in ``server.relay.link_relay``.
 
 Per message, in each direction:
 

@@ -39,8 +39,8 @@ means beyond ``min_joint_change``, ``min_translation`` or ``min_rotation``, so a
 jitter, or too small to be worth a statement, yields nothing and its change is carried into the
 next one. Components that did not change keep the program's values (DRIVE and MOVE keep the
 unchanged joints, DRAW keeps the orientation, ROTATE the position), so no jitter leaks into
-targets. The thesis assumes the control mode does not change within a statement: a mode change
-closes the open segment.
+targets. The thesis assumes the jog mode (joint or tool) does not change within a statement: a mode
+change closes the open segment.
 
 Cartesian targets are expressed in a named frame (``settings.frame``, BASE by default); samples
 may carry the tool pose in the base or the world frame, and the caller passes ``world_T_base`` /
@@ -66,11 +66,20 @@ from shared.spatial import invert, matrix_to_rpy
 log = logging.getLogger(__name__)
 
 
-class ControlMode(str, Enum):
-    """What the operator is driving (thesis 4.3.4): one joint at a time, or the tool."""
+class JogMode(str, Enum):
+    """What the operator is driving (thesis 4.3.4): one joint at a time, or the tool.
+
+    Not the arm's control mode (position or force: ``MODE`` statements, and
+    ``shared.wire.messages.ControlMode`` in telemetry), which is the one ``ControlMode``.
+    """
 
     JOINT = "joint"
     TOOL = "tool"
+
+
+ControlMode = JogMode
+"""Transitional name for ``JogMode``, only while ``server/session.py`` imports it under its old
+name; remove it once that import reads ``JogMode``."""
 
 
 def _as_pose(value: object, name: str, t: float) -> np.ndarray:
@@ -84,7 +93,7 @@ def _as_pose(value: object, name: str, t: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RobotSample:
-    """One state of the virtual robot: time (s), joint vector (rad), control mode, and the tool
+    """One state of the virtual robot: time (s), joint vector (rad), jog mode, and the tool
     pose in the base frame or in the world frame (at least one of them in tool mode).
 
     The tool pose is whatever point the statements should target (the flange, or the gripper
@@ -93,7 +102,7 @@ class RobotSample:
 
     t: float
     q: np.ndarray
-    mode: ControlMode
+    mode: JogMode
     base_T_tool: np.ndarray | None = None
     world_T_tool: np.ndarray | None = None
 
@@ -107,16 +116,16 @@ class RobotSample:
             raise InputError(f"sample at t={t:.3f} s: joint vector must be non-empty and finite")
         object.__setattr__(self, "q", q)
         try:
-            object.__setattr__(self, "mode", ControlMode(self.mode))
+            object.__setattr__(self, "mode", JogMode(self.mode))
         except ValueError:
             raise InputError(
-                f"sample at t={t:.3f} s: unknown control mode {self.mode!r}; valid: joint, tool"
+                f"sample at t={t:.3f} s: unknown control mode {self.mode!r} for jogging; valid: joint, tool"
             ) from None
         if self.base_T_tool is not None:
             object.__setattr__(self, "base_T_tool", _as_pose(self.base_T_tool, "base_T_tool", t))
         if self.world_T_tool is not None:
             object.__setattr__(self, "world_T_tool", _as_pose(self.world_T_tool, "world_T_tool", t))
-        if self.mode is ControlMode.TOOL and self.base_T_tool is None and self.world_T_tool is None:
+        if self.mode is JogMode.TOOL and self.base_T_tool is None and self.world_T_tool is None:
             raise InputError(f"tool-mode sample at t={t:.3f} s has no tool pose (base_T_tool or world_T_tool)")
 
 
@@ -206,7 +215,7 @@ class GeneratedSegment:
 
     t_start: float
     t_end: float
-    mode: ControlMode
+    mode: JogMode
     reason: str  # "departure", "stop", "rotation", "mode", "flush"
     statement: Statement | None
 
@@ -311,7 +320,7 @@ class ProgramGenerator:
         self.segments: deque[GeneratedSegment] = deque(maxlen=self.SEGMENT_HISTORY)
         self._dof: int | None = None
         self._last: _State | None = None
-        self._mode: ControlMode | None = None
+        self._mode: JogMode | None = None
         self._reset_motion()
         self._anchor_q: np.ndarray | None = None
         self._anchor_p: np.ndarray | None = None
@@ -355,7 +364,7 @@ class ProgramGenerator:
         self._v_hist: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
 
     def _state(self, sample: RobotSample) -> _State:
-        if sample.mode is ControlMode.JOINT:
+        if sample.mode is JogMode.JOINT:
             return _State(sample.t, sample.q)
         pose = self._out_T_tool(sample)
         return _State(sample.t, sample.q, pose[:3, 3].copy(), pose[:3, :3].copy())
@@ -379,7 +388,7 @@ class ProgramGenerator:
     # -- velocities ----------------------------------------------------------------------------
     def _velocity(self, old: _State, new: _State) -> np.ndarray:
         dt = new.t - old.t
-        if self._mode is ControlMode.JOINT:
+        if self._mode is JogMode.JOINT:
             return (new.q - old.q) / dt
         out = np.empty(6)
         out[:3] = new.p - old.p
@@ -389,7 +398,7 @@ class ProgramGenerator:
     def _parts(self) -> tuple[tuple[slice, float, float], ...]:
         """(slice of the velocity vector, departure threshold, noise floor) per velocity part."""
         s = self.settings
-        if self._mode is ControlMode.JOINT:
+        if self._mode is JogMode.JOINT:
             return ((slice(0, None), s.joint_departure, s.joint_noise_floor),)
         return (
             (slice(0, 3), s.linear_departure, s.linear_noise_floor),
@@ -447,7 +456,7 @@ class ProgramGenerator:
         """Times, positions in commensurate units, and the per-component scale (1/threshold)."""
         states = list(self._window)
         ts = np.array([s.t for s in states])
-        if self._mode is ControlMode.JOINT:
+        if self._mode is JogMode.JOINT:
             xs = np.stack([s.q for s in states])
             scale = np.full(xs.shape[1], 1.0 / self.settings.joint_departure)
         else:
@@ -579,7 +588,7 @@ class ProgramGenerator:
         """The statement of thesis 4.3.5 for a segment from the program state to ``end``;
         updates the program state to the statement's ideal end."""
         s = self.settings
-        if self._mode is ControlMode.JOINT:
+        if self._mode is JogMode.JOINT:
             changed = np.abs(end.q - self._anchor_q) > s.min_joint_change
             n = int(np.count_nonzero(changed))
             if n == 0:

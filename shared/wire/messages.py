@@ -104,7 +104,8 @@ class RobotState(IntEnum):
 
 
 class ControlMode(IntEnum):
-    """Control mode of the executor (one byte in telemetry)."""
+    """The arm's control mode, as ``MODE POSITION`` / ``MODE FORCE`` statements set it (one byte
+    in telemetry). The console's jog mode, joint or tool, is ``shared.program.generator.JogMode``."""
 
     POSITION = 0
     FORCE = 1

@@ -8,7 +8,7 @@ import time
 
 import httpx
 
-from server.stack import start_child, stop_child
+from server.up.stack import start_child, stop_child
 from support import start_console, stop_process, wait_for
 
 CLIENT = {"X-Teleprog-Client": "trial"}

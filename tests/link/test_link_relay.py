@@ -277,7 +277,7 @@ def test_bad_flags_exit_1_with_one_line(flags, needle):
 
 def test_environment_sets_the_delay(tmp_path, monkeypatch):
     monkeypatch.setenv("TELEPROG_LINK_DELAY_S", "0.25")
-    from server.link_relay import LinkSettings
+    from server.relay.link_relay import LinkSettings
 
     assert LinkSettings.load().delay_s == 0.25
     assert LinkSettings.load(delay_s=0.5).delay_s == 0.5  # a flag overrides the environment
@@ -285,7 +285,7 @@ def test_environment_sets_the_delay(tmp_path, monkeypatch):
 
 def test_a_failing_timer_closes_the_pipe_instead_of_hanging(monkeypatch):
     """In-process relay whose core fails on poll: both ends get 1011 'link error', nothing hangs."""
-    from server.link_relay import LinkRelay, LinkSettings
+    from server.relay.link_relay import LinkRelay, LinkSettings
     from shared.link.core import LinkCore
 
     calls = {"n": 0}

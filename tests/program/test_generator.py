@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from shared.errors import InputError
 from shared.language.statements import Draw, Drive, Frame, Move, Moves, Rotate
 from shared.program.generator import (
-    ControlMode,
     GeneratorSettings,
+    JogMode,
     ProgramGenerator,
     RobotSample,
     generate_program,
@@ -43,11 +43,11 @@ def times(duration: float, start: float = 0.0) -> np.ndarray:
 
 
 def joint_stream(qs: np.ndarray, t0: float = 0.0) -> list[RobotSample]:
-    return [RobotSample(t0 + i * DT, q, ControlMode.JOINT) for i, q in enumerate(qs)]
+    return [RobotSample(t0 + i * DT, q, JogMode.JOINT) for i, q in enumerate(qs)]
 
 
 def tool_stream(ps: np.ndarray, rs: np.ndarray, t0: float = 0.0, q: np.ndarray = Q0) -> list[RobotSample]:
-    return [RobotSample(t0 + i * DT, q, ControlMode.TOOL, base_T_tool=make_transform(r, p)) for i, (p, r) in enumerate(zip(ps, rs))]
+    return [RobotSample(t0 + i * DT, q, JogMode.TOOL, base_T_tool=make_transform(r, p)) for i, (p, r) in enumerate(zip(ps, rs))]
 
 
 def hold(value: np.ndarray, n: int) -> np.ndarray:
@@ -461,7 +461,7 @@ def load_recording() -> dict[str, np.ndarray]:
 
 
 def recorded_samples(rec: dict[str, np.ndarray]) -> list[RobotSample]:
-    modes = (ControlMode.JOINT, ControlMode.TOOL)
+    modes = (JogMode.JOINT, JogMode.TOOL)
     return [
         RobotSample(float(t), q, modes[int(m)], world_T_tool=pose)
         for t, q, pose, m in zip(rec["t"], rec["q"], rec["world_T_tool"], rec["mode"])

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from server.sedimentation import (
+from server.sedimentation.runner import (
     BRUTE_MAX_BODIES,
     SedimentationRunner,
     SedimentationSettings,
     SedimentationSnapshot,
 )
-from server.sedimentation_app import create_sedimentation_app
+from server.sedimentation.app import create_sedimentation_app
 from server.settings import ConsoleSettings
 from shared.errors import InputError, UnknownNameError
 

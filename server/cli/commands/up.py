@@ -9,7 +9,7 @@ import argparse
 
 
 def _cmd_up(args: argparse.Namespace) -> int:
-    from server.run import run_console
+    from server.up.run import run_console
 
     return run_console(args)
 

@@ -30,7 +30,7 @@ from shared.errors import InputError
 
 log = logging.getLogger(__name__)
 
-PROJECT_DIR = Path(__file__).resolve().parent.parent
+PROJECT_DIR = Path(__file__).resolve().parents[2]
 
 
 def _die_with_parent() -> None:  # runs in the child before exec
@@ -120,8 +120,8 @@ def stop_child(child: Child, timeout: float = 10.0) -> None:
 
 
 def spawn_robot_and_link(*, cell: Path, robot_port: int, link_port: int, delay_ms: float) -> tuple[Child, Child, str]:
-    """Start the telerobot and the link relaying to it at once (the link reaches the robot only
-    when a console joins, and the console keeps reconnecting, so nobody waits for anybody);
+    """Start the telerobot and the link relaying to it at once, without waiting (the link reaches
+    the robot only when a console joins, and ``teleprog up`` serves the console once both listen);
     returns both and the link's URL for the console. Ports 0 are chosen free here."""
     robot_port = robot_port or free_port()
     link_port = link_port or free_port()

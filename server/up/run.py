@@ -2,10 +2,12 @@
 
 ``teleprog up`` starts the whole product: unless told otherwise (``--robot-url``: use a running
 robot or link; ``--no-robot``: console only) it first starts the telerobot and the delayed link
-as child processes (``server.stack``), connects the console to the link, watches them (a child
-that exits is logged once, shown in ``/api/link`` and started again on its port, unless
-``--no-restart``), and stops the children when the console stops (Ctrl-C, SIGTERM).
-``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation_app``)
+as child processes (``server.up.stack``), says once that it waits for them and serves the console
+only when both listen, so the console's first connection to the link reaches the robot and there
+are no retries to log. It watches them (a child that exits is logged once, shown in ``/api/link``
+and started again on its port, unless ``--no-restart``), and stops the children when the console
+stops (Ctrl-C, SIGTERM). Stdout carries one URL, the console's (``teleprog console: open ...``).
+``--sedimentation`` serves the particle-sedimentation view (``server.sedimentation.app``)
 instead, with no robot and no link.
 """
 
@@ -15,14 +17,12 @@ import argparse
 import logging
 import signal
 import sys
-import threading
 
 import uvicorn
 
 from server.app import create_app
 from server.settings import ConsoleSettings
 from server.viser_host import uvicorn_config_kwargs
-from shared.errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
 
 def run_sedimentation(settings: ConsoleSettings) -> int:
     """``teleprog up --sedimentation``: the sedimentation view alone (no cell, no children)."""
-    from server.sedimentation_app import create_sedimentation_app
+    from server.sedimentation.app import create_sedimentation_app
 
     app = create_sedimentation_app(settings)  # bad starting values fail here, as one line
     signal.signal(signal.SIGTERM, _exit_quietly)
@@ -78,57 +78,40 @@ def run_console(args: argparse.Namespace) -> int:
     from shared.cells.loader import load_cell
 
     load_cell(settings.cell)  # a broken cell fails here, before any child starts
-    children = []
+    children: list = []
     watcher: list = []  # the ChildWatch, once both children listen
 
-    def children_status() -> dict[str, str]:
-        return watcher[0].status() if watcher else {c.name: "starting" for c in children}
-
     try:
-        watch = None
         if not settings.no_robot and not settings.robot_url:
-            from server.stack import spawn_robot_and_link
+            from server.up.stack import ChildWatch, spawn_robot_and_link
 
             robot, link, link_url = spawn_robot_and_link(
                 cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
             )
             children = [robot, link]
+            # the console serves once both listen, so its first connection reaches the robot: no
+            # retries to log while they start (a child that fails says why, and nothing is served)
+            print("teleprog up: waiting for the telerobot and the link to start ...", flush=True)
+            for child in children:
+                child.wait_ready(settings.child_start_timeout_s)
+            print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
             settings = settings.model_copy(update={"robot_url": link_url})
-            watch = (robot, link)
+            watcher.append(ChildWatch(
+                children, restart=settings.restart_children, start_timeout=settings.child_start_timeout_s
+            ).start())
         elif settings.robot_url:
             print(f"teleprog up: using the robot at {settings.robot_url}", flush=True)
         else:
             print("teleprog up: console only (no robot)", flush=True)
-        app = create_app(settings, children=children_status if watch is not None else None)
+        app = create_app(settings, children=watcher[0].status if watcher else None)
         config = uvicorn.Config(
             app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
         )
         server = _AnnouncingServer(config)
-        failed: list[str] = []
-        if watch is not None:
-            # the children start while the console does; a child that fails stops the console
-            def wait_children() -> None:
-                try:
-                    for child in watch:
-                        child.wait_ready(settings.child_start_timeout_s)
-                except InputError as exc:
-                    failed.append(str(exc))
-                    print(f"teleprog up: {exc}", file=sys.stderr, flush=True)
-                    server.should_exit = True
-                    return
-                robot, link = watch
-                print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
-                from server.stack import ChildWatch
-
-                watcher.append(ChildWatch(
-                    list(watch), restart=settings.restart_children, start_timeout=settings.child_start_timeout_s
-                ).start())
-
-            threading.Thread(target=wait_children, name="children", daemon=True).start()
         server.run()
-        return 0 if server.started and not failed else 1
+        return 0 if server.started else 1
     finally:
-        from server.stack import stop_child
+        from server.up.stack import stop_child
 
         if watcher:
             children = watcher[0].stop()  # no restart while the children are stopped on purpose

@@ -1,4 +1,6 @@
-"""The one command line: ``teleprog <subcommand>``.
+"""The one command line: ``teleprog <subcommand>`` (``python -m server.cli`` runs it too).
+
+One module per subcommand in ``server.cli.commands``.
 
 Errors the project raises on purpose print one line on stderr and exit 1; usage errors exit 2
 (argparse). ``--json`` prints machine-readable output on stdout.
@@ -16,7 +18,7 @@ from collections.abc import Callable, Sequence
 
 from pydantic import ValidationError
 
-from server import commands
+from server.cli import commands
 from shared.errors import TeleprogError
 
 log = logging.getLogger("teleprog")
@@ -69,7 +71,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         # the reader of our output went away (e.g. `| head`): nothing left to say to it
         sys.stderr.close()
         return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -13,7 +13,7 @@ def _cmd_link(args: argparse.Namespace) -> int:
     import asyncio
 
     from server.cli import print_json
-    from server.link_relay import CHANNEL_PATHS, LinkSettings, serve_link
+    from server.relay.link_relay import CHANNEL_PATHS, LinkSettings, serve_link
 
     settings = LinkSettings.load(
         host=args.host, port=args.port, robot=args.robot, delay_s=_ms(args.delay_ms), jitter_s=_ms(args.jitter_ms),

@@ -2,7 +2,7 @@
 thesis chapter 5 in the browser, with no robot and no link.
 
 ``create_sedimentation_app(settings)`` builds a FastAPI app whose lifespan starts the
-simulation (``server.sedimentation.SedimentationRunner``), starts viser on a private loopback
+simulation (``server.sedimentation.runner.SedimentationRunner``), starts viser on a private loopback
 port, and builds the view (``webui.sedimentation``); the page is served under
 ``settings.viser_prefix`` by the same relay as the robot console (``server.viser_host``).
 API: ``GET /api/health``, ``GET``/``PUT /api/sedimentation``; OpenAPI docs at ``/docs``.
@@ -21,7 +21,7 @@ from fastapi.responses import RedirectResponse
 from pydantic import BaseModel
 
 from server.http_errors import add_error_handler
-from server.sedimentation import SedimentationChange, SedimentationRunner, SedimentationSettings, SedimentationState
+from server.sedimentation.runner import SedimentationChange, SedimentationRunner, SedimentationSettings, SedimentationState
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 

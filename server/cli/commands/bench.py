@@ -18,7 +18,7 @@ from pathlib import Path
 
 from shared.errors import InputError
 
-BENCH_DIR = Path(__file__).resolve().parents[2] / "benchmarks"
+BENCH_DIR = Path(__file__).resolve().parents[3] / "benchmarks"
 
 
 def discover() -> dict[str, Path]:
