@@ -33,7 +33,7 @@ from server.console.views import (
 from shared.cells.object_world import ObjectWorld
 from shared.collision.cell_check import CellCollision, CellReport
 from shared.errors import InputError
-from shared.program.generator import ControlMode
+from shared.program.generator import JogMode
 from shared.robots.jog import JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
 from shared.spatial import matrix_to_rpy
 
@@ -100,17 +100,17 @@ class VirtualArm:
         """Put the virtual robot at ``q`` (rad; checked against the joint ranges)."""
         q = self.robot.as_q(q)
         self.robot.check_limits(q)
-        return self._apply(lambda _: q, ControlMode.JOINT, client)
+        return self._apply(lambda _: q, JogMode.JOINT, client)
 
     def jog_joint(self, joint: int, delta: float, *, client: Caller | str | None = None) -> VirtualState:
         """Turn joint ``joint`` (1-based) by ``delta`` rad about its own z axis, stopping at its limit."""
-        return self._apply(lambda q: jog_joint(self.robot, q, joint, delta), ControlMode.JOINT, client)
+        return self._apply(lambda q: jog_joint(self.robot, q, joint, delta), JogMode.JOINT, client)
 
     def set_joint(self, joint: int, value: float, *, client: Caller | str | None = None) -> VirtualState:
         """Turn joint ``joint`` (1-based) to ``value`` rad, stopping at its limit."""
         if not 1 <= joint <= self.robot.dof:
             raise InputError(f"joint {joint} does not exist: the robot has joints 1..{self.robot.dof}")
-        return self._apply(lambda q: jog_joint(self.robot, q, joint, value - q[joint - 1]), ControlMode.JOINT, client)
+        return self._apply(lambda q: jog_joint(self.robot, q, joint, value - q[joint - 1]), JogMode.JOINT, client)
 
     def jog_tool(self, *, frame: str, constraint: str, motion: str, displacement: np.ndarray,
                  client: Caller | str | None = None) -> VirtualState:
@@ -119,7 +119,7 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool(self.robot, q, frames=frames, frame=frame, constraint=constraint, motion=motion, displacement=displacement),
-            ControlMode.TOOL, client,
+            JogMode.TOOL, client,
         )
 
     def jog_tool_to(self, world_T_goal: np.ndarray, *, frame: str, constraint: str, motion: str,
@@ -128,7 +128,7 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool_to(self.robot, q, world_T_goal, frames=frames, frame=frame, constraint=constraint, motion=motion),
-            ControlMode.TOOL, client,
+            JogMode.TOOL, client,
         )
 
     def release(self, *, client: Caller | str | None = None):
@@ -136,7 +136,7 @@ class VirtualArm:
         generated segment. Returns the program view."""
         return self._desk.end_stroke(client=client)
 
-    def _apply(self, step: Step, mode: ControlMode, client: Caller | str | None) -> VirtualState:
+    def _apply(self, step: Step, mode: JogMode, client: Caller | str | None) -> VirtualState:
         """Compute the next joint vector from the current one and publish it, atomically."""
         with self._ctx.lock:
             self._control.check(client)

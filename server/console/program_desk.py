@@ -34,7 +34,7 @@ from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
 from shared.language.statements import Speed, Statement, Until, program_to_json
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
-from shared.program.generator import ControlMode, ProgramGenerator, RobotSample
+from shared.program.generator import JogMode, ProgramGenerator, RobotSample
 
 if TYPE_CHECKING:
     from server.console.control import ControlLock
@@ -76,7 +76,7 @@ class ProgramDesk:
         self._auto = False
         cell = ctx.cell
         self._generator = ProgramGenerator(ctx.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
-        self._stroke_mode: ControlMode | None = None
+        self._stroke_mode: JogMode | None = None
         self.start = ProgramStart(cell.q_home.copy())
         self._confirmed: tuple[int, int, tuple] | None = None
 
@@ -231,7 +231,7 @@ class ProgramDesk:
         return self._editor
 
     # -- generation ----------------------------------------------------------------------------
-    def sample_stroke(self, before: VirtualState, after: VirtualState, mode: ControlMode) -> list[Statement]:
+    def sample_stroke(self, before: VirtualState, after: VirtualState, mode: JogMode) -> list[Statement]:
         """Feed one change of the virtual arm to the generator (under the lock); what it made."""
         if not self._auto:
             return []

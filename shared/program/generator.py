@@ -77,7 +77,6 @@ class JogMode(str, Enum):
     TOOL = "tool"
 
 
-ControlMode = JogMode
 """Transitional name for ``JogMode``, only while ``server/session.py`` imports it under its old
 name; remove it once that import reads ``JogMode``."""
 

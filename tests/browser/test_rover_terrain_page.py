@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from console_page import ConsolePage, wait_for
+from shared.cells.loader import load_cell
+from shared.terrain.cell import cell_terrain_mesh
 from support import ARTIFACTS, screenshot_if_failed, start_console, stop_process
 
 pytestmark = pytest.mark.browser
@@ -42,6 +44,22 @@ def ui(rover_ui: ConsolePage, request) -> ConsolePage:
 
 def terrain(ui: ConsolePage) -> dict:
     return ui.console.api("GET", "/api/terrain").json()
+
+
+def mesh_height(x: float, y: float) -> float:
+    """Height (world, m) of the top terrain triangle over ground position (x, y), by barycentric
+    interpolation over the cell's mesh: an oracle independent of the console's ray picking."""
+    mesh = cell_terrain_mesh(load_cell(ROVER_TERRAIN))
+    a, b, c = (mesh.vertices[mesh.faces[:, i]] for i in range(3))
+    d = (b[:, 1] - c[:, 1]) * (a[:, 0] - c[:, 0]) + (c[:, 0] - b[:, 0]) * (a[:, 1] - c[:, 1])
+    ok = np.abs(d) > 1e-15  # triangles seen edge-on from above cover no ground
+    w0 = ((b[:, 1] - c[:, 1]) * (x - c[:, 0]) + (c[:, 0] - b[:, 0]) * (y - c[:, 1])) / np.where(ok, d, 1.0)
+    w1 = ((c[:, 1] - a[:, 1]) * (x - c[:, 0]) + (a[:, 0] - c[:, 0]) * (y - c[:, 1])) / np.where(ok, d, 1.0)
+    w2 = 1.0 - w0 - w1
+    inside = ok & (w0 >= -1e-12) & (w1 >= -1e-12) & (w2 >= -1e-12)
+    assert inside.any(), f"({x}, {y}) is not over the terrain"
+    z = w0 * a[:, 2] + w1 * b[:, 2] + w2 * c[:, 2]
+    return float(np.max(z[inside]))
 
 
 def test_clearance_and_sensors_on_demand(ui: ConsolePage) -> None:
@@ -72,9 +90,9 @@ def test_click_on_the_terrain_picks_the_target(ui: ConsolePage) -> None:
     ui.page.get_by_label("Pick target on click", exact=True).click()  # camera moves no longer pick
     x, y, z = (v * 1e3 for v in placed["world_p_target"])
     ui.text_appears(rf"Target \({x:.1f}, {y:.1f}, {z:.1f}\) mm")
-    # the picked point lies on the ground: the terrain point at its (x, y) is itself
-    below = ui.console.api("POST", "/api/terrain/placement", json={"ground_mm": [x, y]}).json()
-    np.testing.assert_allclose(below["world_p_target"], placed["world_p_target"], atol=1e-6)
+    # the picked point lies on the ground: checked here against the cell's terrain mesh itself
+    # (no request that changes the session): its z is the height of the mesh at its (x, y)
+    np.testing.assert_allclose(placed["world_p_target"][2], mesh_height(*placed["world_p_target"][:2]), atol=1e-6)
 
 
 def test_typed_ground_position_placement_enters_the_program(ui: ConsolePage) -> None:

@@ -83,7 +83,19 @@ def test_page_shows_method_fps_and_follows_keyboard_and_mouse(sedimentation: Run
     wait_for(lambda: "Refused: N (number of bodies) must be in [2," in page.inner_text("body"), what="the refusal")
     assert api()["n"] == 750
 
-    # a change made elsewhere (the API) shows in the controls
-    assert sedimentation.api("PUT", "/api/sedimentation", json={"n": 900}).status_code == 200
-    wait_for(lambda: box.input_value().replace(",", "") == "900", what="N box following the API")
+    # a change made elsewhere (a second operator's page) shows in this page's controls
+    other = page.context.new_page()
+    try:
+        other.goto(sedimentation.url + "/")
+        other.wait_for_selector("canvas", timeout=30_000)
+        other_box = row(other, "N (bodies)").locator("input:not([type=hidden])").last
+        wait_for(lambda: other_box.input_value().replace(",", "") == "750", what="N 750 in the second page")
+        other_box.click()
+        other_box.press("Control+a")
+        other_box.type("900")
+        other_box.press("Enter")
+        wait_for(lambda: api()["n"] == 900, what="N = 900 in the API")
+    finally:
+        other.close()
+    wait_for(lambda: box.input_value().replace(",", "") == "900", what="N box following the other page")
     wait_for(lambda: "N 900 ·" in page.inner_text("body"), what="N 900 on the page")

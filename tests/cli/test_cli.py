@@ -51,7 +51,6 @@ def test_usage_errors_exit_2() -> None:
 
 
 def test_ik_json_contains_the_configuration_it_came_from() -> None:
-    pytest.importorskip("shared.robots.ik_puma")
     q = [10.0, -30.0, 150.0, 20.0, 40.0, -30.0]
     fk = json.loads(run("kin", "fk", "--robot", "puma562", "--deg", *map(str, q), "--json").stdout)
     from shared.spatial import matrix_to_rpy

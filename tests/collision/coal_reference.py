@@ -50,6 +50,17 @@ class CoalScene:
             out[p] = (res.isCollision(), tris)
         return out
 
+    def collide_pair(self, a: int, b: int, all_contacts: bool = True) -> tuple[bool, set[tuple[int, int]]]:
+        """Bodies ``a`` and ``b`` (indices in ``model.bodies``): (hit, set of (tri_a, tri_b))."""
+        res = coal.CollisionResult()
+        coal.collide(self.objects[a], self.objects[b], self.creq if all_contacts else self.creq_first, res)
+        return res.isCollision(), ({(c.b1, c.b2) for c in res.getContacts()} if all_contacts else set())
+
+    def distance_pair(self, a: int, b: int) -> float:
+        res = coal.DistanceResult()
+        coal.distance(self.objects[a], self.objects[b], self.dreq, res)
+        return res.min_distance
+
     def distances(self, mode: np.ndarray):
         """Per pair with mode 2: (distance, point on a, point on b) in the world frame."""
         out = {}

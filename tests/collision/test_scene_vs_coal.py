@@ -33,45 +33,91 @@ def _tri_distance(model, world, names, ta, tb) -> float:
     return tri_tri_distance_np(pa, pb)[0]
 
 
-def compare(model, coal_scene, report, world, mode) -> dict[str, int]:
-    """Assert agreement on every pair with mode > 0; count what was compared."""
+def checked_pairs(cell, coal_scene, moved: frozenset[str] = frozenset()) -> set[frozenset[str]]:
+    """The body pairs the cell's collision rules ask for, worked out here from the cell and robot
+    data, not taken from the model under test: links that are not neighbours in the chain and not
+    declared always in contact (the robot file's ``always_in_contact``), every link with every
+    object, object pairs with at least one movable object, less the resting contacts (object
+    pairs that coal finds touching in the cell as loaded) unless one of the two was moved."""
+    robot = cell.robot
+    links = [f"link{i}" for i in range(robot.dof + 1) if robot.shapes.get(i)]
+    objects = [o for o in cell.objects if o.shapes]
+    never = {frozenset((f"link{i}", f"link{i + 1}")) for i in range(robot.dof)}
+    never |= {frozenset((f"link{a}", f"link{b}")) for a, b in robot.description.always_in_contact}
+    pairs = {frozenset((a, b)) for i, a in enumerate(links) for b in links[i + 1:]} - never
+    pairs |= {frozenset((a, o.name)) for a in links for o in objects}
+    index = {n: k for k, n in enumerate(coal_scene.model.body_names)}
+    assert set(index) == set(links) | {o.name for o in objects}  # the bodies are the cell's
+    for i, oi in enumerate(objects):
+        for oj in objects[i + 1:]:
+            if not (oi.movable or oj.movable):
+                continue
+            pair = frozenset((oi.name, oj.name))
+            if not (pair & moved):  # resting as loaded: coal on the objects at their cell poses
+                coal_scene.objects[index[oi.name]].setTransform(_coal_pose(oi.world_T_object))
+                coal_scene.objects[index[oj.name]].setTransform(_coal_pose(oj.world_T_object))
+                if coal_scene.collide_pair(index[oi.name], index[oj.name], all_contacts=False)[0]:
+                    continue
+            pairs.add(pair)
+    return pairs
+
+
+def _coal_pose(T: np.ndarray):
+    import coal
+
+    return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+def _ours_triangles(report, a: str, b: str) -> set[tuple[int, int]] | None:
+    """Our interfering triangle pairs of bodies (a, b), ids in that order; None if apart."""
+    if (a, b) in report.triangle_pairs:
+        return {tuple(map(int, t)) for t in report.triangle_pairs[(a, b)]}
+    if (b, a) in report.triangle_pairs:
+        return {(int(tb), int(ta)) for ta, tb in report.triangle_pairs[(b, a)]}
+    return None
+
+
+def compare(model, coal_scene, report, world, expected: set[frozenset[str]]) -> dict[str, int]:
+    """Assert that the report covers exactly the ``expected`` pairs (every distance asked) and
+    agrees with coal on each of them; count what was compared."""
+    assert {frozenset(k) for k in report.distances} == expected, "the checked pairs are not the cell's"
+    assert {frozenset(k) for k in report.triangle_pairs} <= expected
     coal_scene.set_poses(world)
-    col = coal_scene.collide(mode)
-    dist = coal_scene.distances(mode)
+    index = {n: k for k, n in enumerate(model.body_names)}
     counts = {"pairs": 0, "colliding": 0, "apart": 0, "ties": 0}
-    for p, (hit, tris) in col.items():
-        names = model.pair_names[p]
-        ours = names in report.triangle_pairs
+    for pair in sorted(expected, key=sorted):
+        a, b = sorted(pair, key=index.__getitem__)
+        hit, tris = coal_scene.collide_pair(index[a], index[b])
+        mine = _ours_triangles(report, a, b)
+        ours = mine is not None
+        ours_d = report.distance(a, b)
         counts["pairs"] += 1
         if ours != hit:
-            apart_distance = dist[p][0] if ours else report.distances[names].distance
-            assert apart_distance <= TIE, f"{names}: ours {ours}, coal {hit} (apart by {apart_distance} m)"
+            apart_distance = coal_scene.distance_pair(index[a], index[b]) if ours else ours_d.distance
+            assert apart_distance <= TIE, f"{(a, b)}: ours {ours}, coal {hit} (apart by {apart_distance} m)"
             counts["ties"] += 1
             continue
         if hit:
             counts["colliding"] += 1
-            mine = {tuple(map(int, t)) for t in report.triangle_pairs[names]}
             for ta, tb in mine ^ tris:  # only ties (triangles within TIE of touching) may differ
-                d = _tri_distance(model, world, names, ta, tb)
-                assert d <= TIE, f"{names}: triangle pair {(ta, tb)} differs and is {d} m apart"
-            if mode[p] == 2:
-                assert report.distances[names].distance == 0.0
-        elif mode[p] == 2:
+                d = _tri_distance(model, world, (a, b), ta, tb)
+                assert d <= TIE, f"{(a, b)}: triangle pair {(ta, tb)} differs and is {d} m apart"
+            assert ours_d.distance == 0.0
+        else:
             counts["apart"] += 1
-            ours_d = report.distances[names]
-            assert abs(ours_d.distance - dist[p][0]) <= DIST_TOL, f"{names}: {ours_d.distance} vs coal {dist[p][0]}"
+            coal_d = coal_scene.distance_pair(index[a], index[b])
+            assert abs(ours_d.distance - coal_d) <= DIST_TOL, f"{(a, b)}: {ours_d.distance} vs coal {coal_d}"
             assert np.linalg.norm(ours_d.point_a - ours_d.point_b) == pytest.approx(ours_d.distance, abs=1e-9)
     return counts
 
 
-def run_stream(model, coal_scene, qs, object_poses=None) -> dict[str, int]:
+def run_stream(model, coal_scene, qs, expected, object_poses=None) -> dict[str, int]:
     data = model.new_data()  # one caller: coherence caches carry over from pose to pose
     total = {"pairs": 0, "colliding": 0, "apart": 0, "ties": 0, "poses": 0}
     for q in qs:
         report = model.check(q, object_poses=object_poses, data=data)
         world = model._world_poses(q, object_poses)
-        mode = model._mode(data, "all", (), frozenset(object_poses or ()))
-        for k, v in compare(model, coal_scene, report, world, mode).items():
+        for k, v in compare(model, coal_scene, report, world, expected).items():
             total[k] += v
         total["poses"] += 1
         assert report.colliding == bool(report.pairs)
@@ -81,7 +127,9 @@ def run_stream(model, coal_scene, qs, object_poses=None) -> dict[str, int]:
 def test_random_poses_agree_with_coal(cell, model, coal_scene) -> None:
     rng = np.random.default_rng(2024)
     qs = rng.uniform(cell.robot.lower, cell.robot.upper, size=(N_POSES, cell.robot.dof))
-    total = run_stream(model, coal_scene, qs)
+    expected = checked_pairs(cell, coal_scene)
+    total = run_stream(model, coal_scene, qs, expected)
+    assert total["pairs"] == N_POSES * len(expected)
     assert total["colliding"] > N_POSES // 10  # links against the table, the pedestal, each other
     assert total["apart"] > 10 * N_POSES
     assert total["ties"] == 0
@@ -92,7 +140,7 @@ def test_dragging_motion_agrees_with_coal(cell, model, coal_scene) -> None:
     used on almost every pair, and must never change an answer."""
     qs = dragging_path(cell.robot, N_POSES, np.random.default_rng(99))
     data = model.new_data()
-    total = run_stream(model, coal_scene, qs)
+    total = run_stream(model, coal_scene, qs, checked_pairs(cell, coal_scene))
     # and a cold check gives the same report as the warm one
     for q in qs[:: max(1, len(qs) // 50)]:
         warm = model.check(q, data=data)
@@ -103,16 +151,17 @@ def test_dragging_motion_agrees_with_coal(cell, model, coal_scene) -> None:
     assert total["poses"] == N_POSES
 
 
-def _table_contact(model, coal_scene, q, table_mode) -> bool:
+def _table_contact(model, coal_scene, q, table_pairs) -> bool:
     coal_scene.set_poses(model._world_poses(q, None))
-    return any(hit for hit, _ in coal_scene.collide(table_mode, all_contacts=False).values())
+    return any(coal_scene.collide_pair(a, b, all_contacts=False)[0] for a, b in table_pairs)
 
 
 def grazing_poses(model, coal_scene, cell, n_boundaries: int, seed: int = 5) -> list[np.ndarray]:
     """Poses just either side of the robot's first contact with the table (found by bisection
     on coal's answer between a free and a touching random pose)."""
     rng = np.random.default_rng(seed)
-    table_mode = np.array([1 if "table" in names and names[0].startswith("link") else 0 for names in model.pair_names], dtype=np.int8)
+    index = {n: k for k, n in enumerate(model.body_names)}
+    table_mode = [(index[f"link{i}"], index["table"]) for i in range(cell.robot.dof + 1) if f"link{i}" in index]
     out: list[np.ndarray] = []
     found = 0
     while found < n_boundaries:
@@ -139,10 +188,11 @@ def grazing_poses(model, coal_scene, cell, n_boundaries: int, seed: int = 5) -> 
 def test_grazing_the_table_agrees_with_coal(cell, model, coal_scene) -> None:
     qs = grazing_poses(model, coal_scene, cell, n_boundaries=max(10, N_POSES // 40))
     data = model.new_data()
+    expected = checked_pairs(cell, coal_scene)
     near = ties = 0
     for q in qs:
         report = model.check(q, data=data)
-        ties += compare(model, coal_scene, report, model._world_poses(q, None), model._mode(data, "all", (), frozenset()))["ties"]
+        ties += compare(model, coal_scene, report, model._world_poses(q, None), expected)["ties"]
         d = [v.distance for k, v in report.distances.items() if "table" in k]
         near += min(d) < 1e-5
     assert near >= len(qs) // 4  # the set really grazes
@@ -180,6 +230,8 @@ def peg_poses(cell):
 def test_peg_in_hole_sub_and_super_clearance(cell, model, coal_scene) -> None:
     cases = peg_poses(cell)
     data = model.new_data()
+    expected = checked_pairs(cell, coal_scene, moved=frozenset({"peg"}))
+    assert frozenset(("plate", "peg")) in expected  # the resting contact, checked once the peg moves
     for T, expect_hit, expect_dist in cases:
         report = model.check(cell.q_home, object_poses={"peg": T}, data=data)
         hit = ("plate", "peg") in report.triangle_pairs
@@ -187,5 +239,5 @@ def test_peg_in_hole_sub_and_super_clearance(cell, model, coal_scene) -> None:
         if expect_dist is not None:
             assert report.distance("peg", "plate").distance == pytest.approx(expect_dist, abs=1e-9)
         world = model._world_poses(cell.q_home, {"peg": T})
-        assert compare(model, coal_scene, report, world, model._mode(data, "all", (), frozenset({"peg"})))["ties"] == 0
+        assert compare(model, coal_scene, report, world, expected)["ties"] == 0
     assert sum(c[1] for c in cases) > 20 and sum(not c[1] for c in cases) > 20

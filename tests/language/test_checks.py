@@ -289,8 +289,6 @@ def test_any_urdf_robot_without_a_cell() -> None:
 
 
 def test_position_only_arm_takes_draw_but_not_orientation() -> None:
-    if not (ROOT / "assets" / "robots" / "rover" / "robot.toml").is_file():
-        pytest.skip("assets/robots/rover/robot.toml is being built by another helper")
     rover = load_cell(ROOT / "assets" / "cells" / "rover_empty.toml")
     text = (
         "MOVE (-27, -30, -210) deg\nDRAW TO (0, 0, 10) mm IN TOOL\n"

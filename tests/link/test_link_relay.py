@@ -1,8 +1,10 @@
 """``teleprog link`` as a real process on loopback, between real WebSockets.
 
-Delay accuracy is asserted as a behaviour (each message's delay error, p99 within 5 ms of the set
-delay); order, exactly-once execution across a killed and restarted link, clean closing when the
-robot goes away, and faults are checked with the stand-in robot of ``link_standin``.
+The delay is asserted as a behaviour, both ways: no message arrives before the set delay, and the
+median delay error is under 50 ms (loose enough for a loaded test machine; how closely the relay
+holds the delay, its p50/p99, is measured in ``benchmarks/bench_link.py``, not here). Order,
+exactly-once execution across a killed and restarted link, clean closing when the robot goes away,
+and faults are checked with the stand-in robot of ``link_standin``.
 """
 
 from __future__ import annotations

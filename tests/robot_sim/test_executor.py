@@ -167,3 +167,51 @@ def test_the_rover_stops_where_its_arm_meets_the_terrain() -> None:
     checker = load_cell_terrain(rover).checker
     assert 0.0 < checker.min_distance(ex.q) < 0.005
     assert np.max(np.abs(ex.q - np.radians([-69.5, 3.0, -43.0]))) > np.radians(0.5)
+
+
+@pytest.mark.parametrize("where", ["running", "stopped mid-motion", "stopped with a queue", "fault"])
+def test_abort_returns_the_robot_to_idle_and_a_new_statement_runs(where: str) -> None:
+    """Abort from each state it is offered in drops the current statement and the buffer, leaves
+    the robot IDLE with nothing held, and the next statement sent starts and finishes."""
+    slow = "SPEED 5 %"
+    away = "MOVE (20, -45, 180, 0, 45, 0) deg"
+    home = "MOVE (0, -45, 180, 0, 45, 0) deg"
+    text = "DRIVE J9 TO 0 deg\nEVENT next\nEVENT after" if where == "fault" else "\n".join([slow, away, home, away])
+    parsed = parse_program(text)
+    assert not parsed.errors, parsed.errors
+    program = parsed.statements
+    ex = make(program, seed=1)
+    events: list[ExecutorEvent] = []
+    if where == "fault":
+        for _ in range(3):
+            events += ex.tick()
+        assert ex.state is RobotState.FAULT  # the premise: joint 9 does not exist
+    elif where == "stopped with a queue":
+        ex.stop()
+        assert ex.current is None and len(ex.queue) == len(program)
+    else:
+        for _ in range(20):
+            events += ex.tick()
+        assert ex.current_number == 2 and ex.state is RobotState.RUNNING  # the premise: mid-motion
+        if where == "stopped mid-motion":
+            ex.stop()
+            assert ex.state is RobotState.STOPPED
+    assert ex.queue  # something is still waiting in the buffer
+
+    applied, _ = ex.abort()
+    assert applied
+    assert ex.state is RobotState.IDLE
+    assert ex.current is None and not ex.queue and not ex.busy and ex.halted is None
+    events += ex.drain_events()
+    done = finals(events)
+    assert sorted(done) == list(range(1, len(program) + 1))  # every statement got its one final state
+    dropped = [n for n, e in done.items() if e.state is StatementState.ABORTED]
+    assert dropped and dropped == list(range(min(dropped), len(program) + 1))
+
+    # the robot takes and runs a new statement after the abort, without resume
+    number = len(program) + 1
+    ex.enqueue(number, parse_program("MOVE (5, -45, 180, 0, 45, 0) deg").statements[0])
+    after = finals(ex.run_until_idle(max_seconds=60.0))
+    assert after[number].state is StatementState.DONE, after[number].reason
+    assert ex.state is RobotState.IDLE
+    np.testing.assert_allclose(ex.q, np.radians([5, -45, 180, 0, 45, 0]), atol=1e-9)

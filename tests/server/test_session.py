@@ -22,6 +22,7 @@ from server.console import (
     Session,
 )
 from shared.errors import InputError, JointLimitError
+from shared.language.statements import Frame
 
 
 def _stroke(session: Session, clock, dx: float, steps: int = 8) -> None:
@@ -30,7 +31,8 @@ def _stroke(session: Session, clock, dx: float, steps: int = 8) -> None:
         clock.advance(0.02)
 
 
-def test_generation_follows_the_arm_and_flushes_on_release(session: Session, clock) -> None:
+def test_generation_follows_the_arm_and_flushes_on_release(session: Session, clock, cell_and_scene) -> None:
+    cell, _ = cell_and_scene
     events = []
     session.subscribe_events(events.append)
     session.program.set_auto_generate(True)
@@ -40,9 +42,18 @@ def test_generation_follows_the_arm_and_flushes_on_release(session: Session, clo
     kinds = [e.kind for e in program.entries]
     assert kinds == ["DRAW", "EMPTY"]
     draw = program.entries[0].statement
-    # the target is where the arm went (base frame; the base sits at the world's x offset)
-    assert session.arm.view().tool_xyz_mm[0] == pytest.approx(x0 + 40.0, abs=0.5)
-    assert np.linalg.norm(np.array(draw.position) * 1e3 - session.arm.view().tool_xyz_mm) > 0  # in BASE, not world
+    assert session.arm.view().tool_xyz_mm[0] == pytest.approx(x0 + 40.0, abs=0.5)  # the arm went 40 mm along world x
+    # the target is where the arm went: the tool point after the jog, computed here from the
+    # arm's joints by forward kinematics (world_T_base @ fk(q) @ flange_T_tcp), then expressed
+    # in the statement's frame; DRAW positions are metres (shared/language/statements.py)
+    world_tcp = cell.world_T_base @ cell.robot.fk(session.arm.state.q) @ cell.flange_T_tcp
+    np.testing.assert_allclose(world_tcp[:3, 3] * 1e3, session.arm.view().tool_xyz_mm, atol=1e-6)
+    out_T_world = {
+        Frame.WORLD: np.eye(4), Frame.BASE: np.linalg.inv(cell.world_T_base), Frame.WORK: np.linalg.inv(cell.frame("work")),
+    }[draw.frame]
+    expected = (out_T_world @ world_tcp)[:3, 3]
+    # within 0.01 mm: the stroke ends on the arm's last sample, written with 2 mm decimals (0.005 mm)
+    np.testing.assert_allclose(np.array(draw.position), expected, atol=1e-5)
     for _ in range(6):
         session.arm.jog_joint(1, np.radians(2.0))
         clock.advance(0.02)

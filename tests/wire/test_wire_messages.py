@@ -89,14 +89,37 @@ def test_malformed_messages_become_rejections(text, reason):
     assert isinstance(result, Rejected) and result.reason is reason
 
 
+def assert_documented_outcome(result) -> None:
+    """What ``decode_message`` promises for any input: a ``Rejected`` with a reason and a detail
+    saying why, or a typed message that encodes and decodes back equal."""
+    if isinstance(result, Rejected) and result.comm_id is None and result.seq is None:
+        assert isinstance(result.reason, RejectReason) and result.detail, result
+    else:
+        assert decode_message(encode_message(result)) == result
+
+
 @given(st.text(max_size=300))
 @settings(max_examples=300)
 def test_arbitrary_text_never_raises(text):
-    decode_message(text)
+    result = decode_message(text)  # an exception fails the test
+    assert_documented_outcome(result)
+    try:
+        obj = json.loads(text)
+    except ValueError:  # not even lenient JSON: certainly not strict JSON
+        assert isinstance(result, Rejected) and result.reason is RejectReason.BAD_JSON, result
+    else:
+        if not isinstance(obj, dict):
+            assert isinstance(result, Rejected) and result.reason in (RejectReason.BAD_JSON, RejectReason.BAD_MESSAGE), result
 
 
 @given(st.dictionaries(st.sampled_from(["type", "command_id", "number", "client_id", "comm_id", "numbers"]),
                        st.none() | st.integers() | st.text(max_size=8) | st.sampled_from(["stop", "skip", "hello", "accepted"]),
                        max_size=5))
 def test_arbitrary_objects_never_raise(obj):
-    decode_message(json.dumps(obj))
+    result = decode_message(json.dumps(obj))  # an exception fails the test
+    assert_documented_outcome(result)
+    if isinstance(result, Rejected):  # json.dumps of these values is strict JSON: refused as a message
+        assert result.reason is RejectReason.BAD_MESSAGE, result
+    else:  # a message is the type it said it was, with the fields it gave
+        assert result.type == obj["type"]
+        assert {k: v for k, v in obj.items() if v is not None}.items() <= json.loads(encode_message(result)).items()
