@@ -77,10 +77,6 @@ class JogMode(str, Enum):
     TOOL = "tool"
 
 
-"""Transitional name for ``JogMode``, only while ``server/session.py`` imports it under its old
-name; remove it once that import reads ``JogMode``."""
-
-
 def _as_pose(value: object, name: str, t: float) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     if arr.shape != (4, 4):
