@@ -80,6 +80,7 @@ class Session:
         ctx = self._ctx = ConsoleContext(cell, settings or SessionSettings(), self.bus, clock, wall_clock)
         self.settings = ctx.settings
         self.clock, self.wall_clock = clock, wall_clock
+        self.frames = ctx.frames  # where the named jog frames are (world_T_base, work, the tool point)
         ground = GroundChecker.for_cell(cell)
         collision = CellCollision(cell, scene=scene, ground=ground)
         self.control = ControlLock(ctx)
