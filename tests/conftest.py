@@ -27,8 +27,11 @@ def linked_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Running
     stop_process(running.proc)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def chromium():
+    """Debian's chromium through Playwright's sync API, one per module: that API runs an event
+    loop in the main thread while it is open, and a test that calls ``asyncio.run`` cannot run
+    inside it, so it closes with the module and tests may run in any order of modules."""
     from playwright.sync_api import sync_playwright
 
     executable = os.environ.get("CHROMIUM", "/usr/bin/chromium")
@@ -54,9 +57,3 @@ def pytest_runtest_makereport(item, call):
     outcome = yield
     rep = outcome.get_result()
     setattr(item, "rep_" + rep.when, rep)
-
-
-def pytest_collection_modifyitems(config, items):
-    """Run the browser tests last: Playwright's sync API keeps an event loop running in the main
-    thread for the rest of the session, and tests that call ``asyncio.run`` cannot run after it."""
-    items.sort(key=lambda item: item.get_closest_marker("browser") is not None or "tests/browser/" in str(item.fspath))

@@ -20,7 +20,8 @@ import pytest
 from console_page import ConsolePage, wait_for
 from support import screenshot_if_failed
 
-pytestmark = pytest.mark.browser
+# one page on one console for the module, its tests are steps an operator takes in turn: kept in their written order under --random-order
+pytestmark = [pytest.mark.browser, pytest.mark.random_order(disabled=True)]
 
 DOCS_SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "console.png"
 

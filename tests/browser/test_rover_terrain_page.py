@@ -20,7 +20,8 @@ from shared.cells.loader import load_cell
 from shared.terrain.cell import cell_terrain_mesh
 from support import ARTIFACTS, screenshot_if_failed, start_console, stop_process
 
-pytestmark = pytest.mark.browser
+# one page on one rover console for the module, its tests are steps in turn: kept in their written order under --random-order
+pytestmark = [pytest.mark.browser, pytest.mark.random_order(disabled=True)]
 
 ROVER_TERRAIN = Path(__file__).resolve().parents[2] / "assets" / "cells" / "rover_terrain.toml"
 

@@ -23,7 +23,8 @@ from console_page import ConsolePage  # noqa: E402
 
 from support import RunningConsole, screenshot_if_failed, start_console, stop_process, wait_for  # noqa: E402
 
-pytestmark = pytest.mark.browser
+# one page on one 3 s-link console for the module, its tests are steps in turn: kept in their written order under --random-order
+pytestmark = [pytest.mark.browser, pytest.mark.random_order(disabled=True)]
 
 HOME_J2_DEG = -45.52  # assets/cells/peg_in_hole.toml
 KEY_PAUSE_S = 0.3  # between keystrokes: several of viser's 50 ms GUI sends, so a per-key value would arrive
