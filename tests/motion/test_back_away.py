@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from tcp_oracle import WORLD_T_BASE, checked_frames, tcp_point  # noqa: F401
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.parser import parse_statement
@@ -19,8 +19,6 @@ from shared.motion.back_away import approach_direction, back_away_motion
 from shared.motion.interpreter import plan_program
 from shared.robots.jog import JogFrames
 
-WORLD_T_BASE = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0.66], [0, 0, 0, 1.0]])
-FLANGE_T_TCP = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0.11], [0, 0, 0, 1.0]])
 DISTANCE, SPEED = 0.03, 0.01
 # found by sampling the joint ranges: the arm reaches up and out at the edge of its workspace,
 # so no line from here plans (up is out of reach)
@@ -36,16 +34,9 @@ def cell():
 
 @pytest.fixture(scope="module")
 def frames(cell) -> JogFrames:
-    np.testing.assert_allclose(cell.world_T_base, WORLD_T_BASE, atol=1e-12)
-    np.testing.assert_allclose(cell.flange_T_tcp, FLANGE_T_TCP, atol=1e-12)
-    return JogFrames(cell.world_T_base, cell.frame("work"), cell.flange_T_tcp)
+    return checked_frames(cell)
 
 
-def tcp_point(cell, q) -> np.ndarray:
-    model = cell.robot.model
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
-    return (WORLD_T_BASE @ data.oMf[cell.robot.tool_frame_id].homogeneous @ FLANGE_T_TCP)[:3, 3]
 
 
 def end_of(cell, motion, q) -> np.ndarray:

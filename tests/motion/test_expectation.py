@@ -8,17 +8,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from tcp_oracle import WORLD_T_BASE, checked_frames, tcp_point  # noqa: F401
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.parser import parse_program
 from shared.motion.expectation import ArmOffset, arm_offset, tool_path
 from shared.motion.interpreter import plan_program
 from shared.robots.jog import JogFrames
-
-WORLD_T_BASE = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0.66], [0, 0, 0, 1.0]])
-FLANGE_T_TCP = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0.11], [0, 0, 0, 1.0]])
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +25,9 @@ def cell():
 
 @pytest.fixture(scope="module")
 def frames(cell) -> JogFrames:
-    np.testing.assert_allclose(cell.world_T_base, WORLD_T_BASE, atol=1e-12)
-    np.testing.assert_allclose(cell.flange_T_tcp, FLANGE_T_TCP, atol=1e-12)
-    return JogFrames(cell.world_T_base, cell.frame("work"), cell.flange_T_tcp)
+    return checked_frames(cell)
 
 
-def tcp_point(cell, q) -> np.ndarray:
-    """The tool point in the world at ``q``: pinocchio's frame placement, then the cell's frames."""
-    model = cell.robot.model
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
-    base_T_flange = data.oMf[cell.robot.tool_frame_id].homogeneous
-    return (WORLD_T_BASE @ base_T_flange @ FLANGE_T_TCP)[:3, 3]
 
 
 def test_the_same_arm_has_no_offset(cell, frames) -> None:
