@@ -19,6 +19,7 @@ from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
+from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
 from server.console import Session
 from server.http_errors import add_error_handler
@@ -104,9 +105,12 @@ def create_app(
         ),
         version="0.2.0",
         lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
     )
 
     add_error_handler(app)
+    add_offline_docs(app)
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:

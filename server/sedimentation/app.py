@@ -20,8 +20,14 @@ from fastapi import FastAPI, HTTPException
 from fastapi.responses import RedirectResponse
 from pydantic import BaseModel
 
+from server.api_docs import add_offline_docs
 from server.http_errors import add_error_handler
-from server.sedimentation.runner import SedimentationChange, SedimentationRunner, SedimentationSettings, SedimentationState
+from server.sedimentation.runner import (
+    SedimentationChange,
+    SedimentationRunner,
+    SedimentationSettings,
+    SedimentationState,
+)
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 
@@ -86,9 +92,12 @@ def create_sedimentation_app(settings: ConsoleSettings | None = None, *, build_p
         ),
         version="0.1.0",
         lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
     )
 
     add_error_handler(app)
+    add_offline_docs(app)
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:
