@@ -249,7 +249,10 @@ class Dispatch:
         if actions and statements[actions[0] - start].until is None:
             index = actions[0]
             st = statements[index - start]
-            blocked = self._desk.preview.path_not_clear(start, stop).get(index)
+            try:
+                blocked = self._desk.preview.path_not_clear(start, stop).get(index)
+            except TeleprogError as exc:
+                blocked = f"it cannot be planned: {exc}"
             if blocked is not None:
                 raise ConflictError(
                     f"operation regime: the {st.kind} (statement {index + 1}) has no UNTIL and its path is not clear "

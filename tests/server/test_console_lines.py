@@ -160,3 +160,42 @@ def test_the_operation_regime_takes_the_rover_placement_program(rover_session: S
         assert len(steps) == sum(parse_statement(t).kind == "MOVE" for t in placement.program)
     finally:
         fake.open_gates()
+
+
+def _robot_in_force_mode(session: Session, robot: FakeRobot) -> None:
+    session.modes.set_regime_override(Regime.FREE)
+    session.program.insert("MODE FORCE")
+    session.dispatch.submit(0, 1)
+    run_all(session, robot)
+    assert session.dispatch.robot_mode.value == "FORCE"
+
+
+def test_an_added_line_keeps_the_quasi_confirmation(session: Session, robot: FakeRobot, clock) -> None:
+    """A MODE line changes no path: the range previewed to its end stays confirmed with it."""
+    _robot_in_force_mode(session, robot)
+    session.modes.set_regime_override(Regime.QUASI)
+    session.program.insert("DRIVE J1 TO 10 deg")
+    preview = session.preview.begin(0, 1)
+    session.preview.seek(preview.duration)
+    session.preview.end()
+    assert session.program.view().confirmed == (0, 1)
+    with pytest.raises(ConsoleLineAdded, match="added as line 1"):
+        session.dispatch.submit(0, 1)
+    assert session.program.view().confirmed == (0, 2)
+    session.dispatch.submit(0, 2)
+    assert sent(robot, 2) == ["MODE POSITION", "DRIVE J1 TO 10 deg"]
+
+
+def test_streaming_shows_the_added_line_and_sends_it_with_the_move(session: Session, robot: FakeRobot, clock) -> None:
+    _robot_in_force_mode(session, robot)
+    seen = []
+    session.subscribe_events(lambda e: seen.append(e))
+    session.program.set_auto_generate(True)
+    for _ in range(4):
+        session.arm.jog_joint(1, 0.02)
+        clock.advance(0.02)
+    session.arm.release()
+    texts = sent(robot, 2)
+    assert texts[0] == "MODE POSITION" and texts[1].startswith("DRIVE J1") and len(texts) == 2
+    shown = [e for e in seen if e.type == "program" and any(x.added_by == "console" for x in e.program.entries)]
+    assert shown and shown[0].program.entries[0].text == "MODE POSITION"  # a line of the program before it left
