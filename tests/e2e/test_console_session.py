@@ -237,9 +237,9 @@ def test_regimes_free_streams_and_operation_goes_one_step_with_its_mode_as_a_lin
     wait_for("all done", lambda: call(up, "GET", "/api/sent")["pending"] == 0)
 
 
-# --- the peg transfer of thesis §4.6, in the pieces the editor's rules allow (nothing may follow a
-# task call, so each task call ends a submission); the console tracks what the robot holds, sees
-# the divergence the unpredictable insertion leaves, and re-syncs the arm and the peg.
+# --- the peg transfer of thesis §4.6, sent in pieces (each task call ends one, so every piece is
+# seen done before the next); the console tracks what the robot holds, sees the divergence the
+# unpredictable insertion leaves, and re-syncs the arm and the peg.
 
 PIECES = [
     ["SPEED 50 %", "MOVES TO (0, -80, 160) mm (180, 0, 0) deg IN WORK", "EVENT above_peg",
