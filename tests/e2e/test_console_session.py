@@ -209,8 +209,9 @@ def test_regimes_free_streams_and_operation_goes_one_step_with_its_mode_as_a_lin
     # operation: one motion per step, after the previous one is final; a contact move (UNTIL)
     # runs in force mode, and the console puts the MODE FORCE into the program as a line first
     call(up, "PUT", "/api/regime", {"regime": "operation"})
-    j4 = call(up, "GET", "/api/arm")["q_deg"][3]
-    touch, turn = f"DRIVE J4 TO {j4 + 2:.1f} deg WITH SPEED 5 % UNTIL CONTACT", f"DRIVE J4 TO {j4 + 4:.1f} deg"
+    j4 = round(call(up, "GET", "/api/arm")["q_deg"][3])
+    # the contact move is slow (some seconds), so the next submission finds it still running
+    touch, turn = f"DRIVE J4 TO {j4 + 20} deg WITH SPEED 2 % UNTIL CONTACT", f"DRIVE J4 TO {j4 + 24} deg"
     for text in ("EVENT near", touch, turn):
         call(up, "POST", "/api/program/insert", {"text": text})
     r = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 3})
