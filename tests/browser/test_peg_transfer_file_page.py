@@ -16,13 +16,13 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-
 from console_page import ConsolePage, wait_for
+from support import RunningConsole, screenshot_if_failed, start_console, stop_process
+
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.formatter import format_statement
 from shared.language.parser import parse_file
 from shared.paths import ASSETS_DIR
-from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 
 pytestmark = pytest.mark.browser
 

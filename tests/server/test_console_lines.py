@@ -5,15 +5,22 @@ mode is predicted from what was sent and ran; the operation regime takes the con
 programs one step at a time. The session runs against the in-memory robot of
 ``test_console_dispatch`` (the ``RobotLink`` seam), in virtual time."""
 
+# ruff: noqa: F811 - the imported fixtures are test parameters by the same name
 from __future__ import annotations
 
 import pytest
+from test_console_dispatch import (  # noqa: F401 - fixtures used by name
+    FakeRobot,
+    cell_and_scene,
+    loop,
+    robot,
+    statuses,
+    wait_until,
+)
 
 from server.console import FINAL_SENT, ConflictError, Regime, SentStatus, Session
 from server.console.errors import ConsoleLineAdded
 from server.robot_client import CommunicationRejected
-from test_console_dispatch import FakeRobot, statuses, wait_until
-from test_console_dispatch import cell_and_scene, loop, robot  # noqa: F401 - fixtures used by name
 from shared.cells.loader import load_cell
 from shared.collision import SceneModel
 from shared.language.formatter import format_statement
@@ -136,7 +143,7 @@ def rover_session(clock):
     s.close()
 
 
-def test_the_operation_regime_takes_the_rover_placement_program(rover_session: Session, loop, clock) -> None:  # noqa: F811
+def test_the_operation_regime_takes_the_rover_placement_program(rover_session: Session, loop, clock) -> None:
     session = rover_session
     fake = FakeRobot(clock, loop)
     session.attach_robot(fake, loop)

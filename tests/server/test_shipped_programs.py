@@ -21,7 +21,7 @@ from server.settings import ConsoleSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 PROGRAMS = sorted((ROOT / "assets" / "programs").glob("*.tp")) + sorted((ROOT / "assets" / "programs").glob("*.json"))
-CHECK_LINE = re.compile(r"^#\s*check:\s*teleprog check \S+ --robot (?P<robot>\S+) --cell (?P<cell>\S+)\s*$", re.M)
+CHECK_LINE = re.compile(r"^#\s*check:\s*teleprog check \S+ --robot (?P<robot>\S+) --cell (?P<cell>\S+)\s*$", re.MULTILINE)
 
 
 def _robot_and_cell(path: Path) -> tuple[str, str]:
@@ -33,7 +33,7 @@ def _robot_and_cell(path: Path) -> tuple[str, str]:
 def _check(path: Path, robot: str, cell: str) -> tuple[bool, str]:
     done = subprocess.run(
         [sys.executable, "-m", "server.cli", "check", str(path), "--robot", robot, "--cell", cell],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
+        cwd=ROOT, capture_output=True, text=True, timeout=120, check=False,
     )
     assert done.returncode in (0, 1), done.stderr
     return done.returncode == 0, done.stdout + done.stderr
