@@ -31,6 +31,8 @@ def program_markdown(view: ProgramView) -> str:
     lines = []
     for entry in view.entries:
         text = "*(empty statement)*" if entry.kind == "EMPTY" else f"`{entry.text}`"
+        if entry.added_by == "console":
+            text += f" *(added by the console: {entry.added_reason}; delete it to go without)*"
         # "n:" rather than "n." so markdown does not turn the program into its own numbered list
         lead = f"{MARK} **{entry.index + 1}:**" if entry.index == view.selected else f"{entry.index + 1}:"
         lines.append(f"{lead} {text}")

@@ -1,13 +1,45 @@
 """Dispatch (thesis §4.2.1-4.2.2): statements leave the program for the robot, get the robot's
 numbers, and move through their statuses as its reports arrive.
 
-``submit`` applies the regime: in quasi-operation the range must have been previewed to its end
-without warnings; in operation one statement goes at a time, each action with an UNTIL, in force
-mode. The statements leave the program at once and join the sent list as ``sending``; the send
-itself runs on the robot client's loop and is never waited for. The program then starts where
-the sent statements are predicted to end (and a grasp or release among them changes what the
-virtual gripper holds). Reports that arrive before their numbers are kept until the numbers come.
-A robot that began a new session leaves every unanswered statement ``unknown``.
+What goes out is exactly the lines of the program the operator submitted: the console never
+sends a statement that is not a line. Where the regime needs the arm in another control mode,
+the console puts the MODE statement into the program as a line of its own (marked as added by
+the console, with its reason, deletable like any line) and refuses the submission once: "submit
+needs MODE FORCE first: added as line N, submit again".
+
+``submit`` applies the regime's rules:
+
+* free motion (online) and quasi-operation (offline): actions run in position mode, where any
+  contact past the robot's contact limit stops them. An action that would run in force mode only
+  because an earlier submission left the robot there gets a ``MODE POSITION`` line before it;
+  a MODE statement the operator put in the range before the action is the operator's choice and
+  stands. In quasi-operation the range must also have been previewed to its end without warnings.
+* operation (single step, near contact): one step at a time, each after the previous one is
+  final. A step is at most one motion (an action, or a task that moves the arm), with any
+  parameter statements (SPEED, MODE, EVENT) around it. The motion must be guarded against contact
+  it does not expect, in one of two ways: an action meant to touch carries an UNTIL (force or
+  contact) and runs in force mode (a ``MODE FORCE`` line before it when the robot is not in force
+  mode); an action not meant to touch has no UNTIL, the model must show its whole path clear of
+  contact (the preview's check: no arm contact, no joint range left), and it runs in position mode
+  (a ``MODE POSITION`` line when needed), where an unexpected contact stops it at the contact
+  limit. Tasks bring their own guarding (the robot's force-compliant sub-tasks) and need no mode.
+  So the console's own programs pass: the rover placement program (joint moves to poses whose
+  clearance the placement search checked) and generated DRAW/DRIVE statements go one step at a
+  time, and a contact move the operator wrote carries its UNTIL.
+
+A console line the operator deleted is not put back for the same need: in free and
+quasi-operation the statement then goes without it (the operator's choice); in operation the
+submission is refused with what to do.
+
+The mode the robot will be in (:attr:`Dispatch.robot_mode`) is predicted from the sent list: the
+last MODE statement since the robot's session began that was not dropped (rejected, skipped,
+aborted, unknown), else the mode telemetry reports, else position.
+
+The statements leave the program at once and join the sent list as ``sending``; the send itself
+runs on the robot client's loop and is never waited for. The program then starts where the sent
+statements are predicted to end (and a grasp or release among them changes what the virtual
+gripper holds). Reports that arrive before their numbers are kept until the numbers come. A robot
+that began a new session leaves every unanswered statement ``unknown``.
 """
 
 from __future__ import annotations
@@ -19,7 +51,12 @@ from typing import TYPE_CHECKING
 
 from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT, Regime, SentStatus
-from server.console.errors import ConflictError, NotConnectedError, RefusedByRule
+from server.console.errors import (
+    ConflictError,
+    ConsoleLineAdded,
+    NotConnectedError,
+    RefusedByRule,
+)
 from server.console.events import (
     LinkChanged,
     Notice,
@@ -32,11 +69,12 @@ from server.console.views import Caller, SentListView, SentView
 from server.robot_client import RobotRestarted
 from shared.errors import InputError, TeleprogError
 from shared.language.statements import Mode, SetMode, Statement, TaskCall, is_action
+from shared.language.task_rule import moves_arm
 from shared.motion import Plan
 from shared.motion.plan_check import plan_or_refuse
 from shared.program.editor import Refusal
 from shared.robots.jog import world_T_tcp
-from shared.wire.messages import StatusReport
+from shared.wire.messages import ControlMode, StatusReport
 from shared.wire.session import SessionRestart
 
 if TYPE_CHECKING:
@@ -48,6 +86,10 @@ if TYPE_CHECKING:
     from server.console.remote import RemoteMirror
 
 log = logging.getLogger(__name__)
+
+NOT_RUN = frozenset({SentStatus.REJECTED, SentStatus.SKIPPED, SentStatus.ABORTED, SentStatus.UNKNOWN, SentStatus.FAILED})
+"""Final statuses of a statement that did not (or may not have) run."""
+
 
 NO_ROBOT = "no robot is configured for this console (started with --no-robot)"
 
@@ -95,7 +137,7 @@ class Dispatch:
         self._by_number: dict[int, Sent] = {}
         self._early: dict[int, list[StatusReport]] = {}
         self._comms = 0
-        self.robot_mode = Mode.POSITION
+        self._session_from = 0  # the sent list's first statement of the robot's current session
         self.round_trips: list[float] = []
 
     # -- the seam ------------------------------------------------------------------------------
@@ -135,59 +177,124 @@ class Dispatch:
     # -- submitting ------------------------------------------------------------------------------
     def submit(self, start: int, stop: int, *, client: Caller | str | None = None) -> SentListView:
         """Send ``statements[start:stop]`` (``start`` must be 0) to the robot, under the regime."""
-        with self._ctx.lock:
-            self._control.check(client)
-            robot, loop = self.need_robot()
-            self._desk.check_not_previewing("submit statements")
-            editor = self._desk.editor
-            check = editor.state.check_submit(start, stop)
-            if check is not None:
-                raise RefusedByRule(check)
-            statements = list(editor.state.statements[start:stop])
-            outgoing = self._regime_prefix(statements, start, stop) + statements
-            for i, st in enumerate(statements):  # whatever built them, they are checked before they leave
-                try:
-                    checked_statement(st)
-                except TeleprogError as exc:
-                    raise InputError(f"statement {start + i + 1}: {exc}") from None
-            start_state = self._desk.start
-            plan = None if start_state.unknown else plan_or_refuse(outgoing, self._ctx.robot, self._ctx.cell, start_state.q)
-            result = editor.submit(start, stop)
-            if isinstance(result, Refusal):
-                raise RefusedByRule(result)
-            for st in outgoing:
-                if st.kind == "MODE":
-                    self.robot_mode = st.mode
-            comm = self.open_communication(outgoing)
-            held_before = self._arm.objects.held
-            self._advance_start(outgoing, plan)
-            arm_events = self._arm.refresh() if self._arm.objects.held != held_before or self._arm.objects.held is not None else []
-            self._desk.withdraw_confirmation()
-        asyncio.run_coroutine_threadsafe(self.send(robot, comm, outgoing), loop)
+        try:
+            with self._ctx.lock:
+                self._control.check(client)
+                robot, loop = self.need_robot()
+                self._desk.check_not_previewing("submit statements")
+                editor = self._desk.editor
+                check = editor.state.check_submit(start, stop)
+                if check is not None:
+                    raise RefusedByRule(check)
+                statements = list(editor.state.statements[start:stop])
+                for i, st in enumerate(statements):  # whatever built them, they are checked before they leave
+                    try:
+                        checked_statement(st)
+                    except TeleprogError as exc:
+                        raise InputError(f"statement {start + i + 1}: {exc}") from None
+                self._regime_rules(statements, start, stop)
+                self._mode_line(statements, start, stop)  # raises ConsoleLineAdded after adding one
+                start_state = self._desk.start
+                plan = None if start_state.unknown else plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start_state.q)
+                result = editor.submit(start, stop)
+                if isinstance(result, Refusal):
+                    raise RefusedByRule(result)
+                self._desk.lines_sent(statements)
+                mode_before = self.robot_mode
+                comm = self.open_communication(statements)
+                if self.robot_mode is not mode_before:
+                    self._desk.forget_declined()  # the need for a mode line is a new one now
+                held_before = self._arm.objects.held
+                self._advance_start(statements, plan)
+                arm_events = self._arm.refresh() if self._arm.objects.held != held_before or self._arm.objects.held is not None else []
+                self._desk.withdraw_confirmation()
+        except ConsoleLineAdded as exc:
+            self._ctx.bus.emit([ProgramChanged(program=self._desk.view()), Notice(level="warning", message=str(exc))])
+            raise
+        asyncio.run_coroutine_threadsafe(self.send(robot, comm, statements), loop)
         view = self.view()
         self._ctx.bus.emit([SentChanged(sent=view), ProgramChanged(program=self._desk.view()), *arm_events])
         self.remote.refresh_predicted()
         return view
 
-    def _regime_prefix(self, statements: list[Statement], start: int, stop: int) -> list[Statement]:
-        """What the regime needs sent first (a MODE change), or its refusal (under the lock)."""
+    @property
+    def robot_mode(self) -> Mode:
+        """The mode the robot will be in once what was sent has run (module docstring)."""
+        with self._ctx.lock:
+            for s in reversed(self.sent[self._session_from:]):
+                if isinstance(s.statement, SetMode) and s.status not in NOT_RUN:
+                    return s.statement.mode
+            frame = self.remote.telemetry if self.remote is not None else None
+            return Mode.FORCE if frame is not None and frame.mode is ControlMode.FORCE else Mode.POSITION
+
+    def _regime_rules(self, statements: list[Statement], start: int, stop: int) -> None:
+        """The regime's refusals of this range (under the lock); the mode is :meth:`_mode_line`'s."""
         regime = self._modes.regime
         if regime is Regime.QUASI:
             c = self._desk.confirmed_range()
             if c is None or c[0] != 0 or c[1] < stop:
                 raise ConflictError(f"quasi-operation regime: preview statements 1..{stop} to their end without warnings before sending")
-        if regime is Regime.OPERATION:
-            if stop - start != 1:
-                raise ConflictError("operation regime: send one statement at a time")
-            if any(not s.final for s in self.sent):
-                raise ConflictError("operation regime: wait until the previous statement is final")
-            st = statements[0]
-            if is_action(st) and st.until is None:
-                raise ConflictError(f"operation regime: the {st.kind} action needs an UNTIL condition (force or contact)")
-            return [SetMode(mode=Mode.FORCE)] if self.robot_mode is not Mode.FORCE else []
-        if self.robot_mode is Mode.FORCE and not any(getattr(s, "kind", "") == "MODE" for s in statements[:1]):
-            return [SetMode(mode=Mode.POSITION)]
-        return []
+        if regime is not Regime.OPERATION:
+            return
+        if any(not s.final for s in self.sent):
+            raise ConflictError("operation regime: wait until the previous statement is final")
+        motions = [start + i for i, st in enumerate(statements) if moves_arm(st)]
+        if len(motions) > 1:
+            first = motions[0]
+            raise ConflictError(
+                f"operation regime: one motion per step; statements {first + 1} and {motions[1] + 1} both move the arm: "
+                f"submit statements 1..{motions[1]} first"
+            )
+        actions = [i for i in motions if is_action(statements[i - start])]
+        if actions and statements[actions[0] - start].until is None:
+            index = actions[0]
+            st = statements[index - start]
+            try:
+                blocked = self._desk.preview.path_not_clear(start, stop).get(index)
+            except TeleprogError as exc:
+                blocked = f"it cannot be planned: {exc}"
+            if blocked is not None:
+                raise ConflictError(
+                    f"operation regime: the {st.kind} (statement {index + 1}) has no UNTIL and its path is not clear "
+                    f"({blocked}): give it an UNTIL (contact or force) or move clear first"
+                )
+
+    def _mode_line(self, statements: list[Statement], start: int, stop: int) -> None:
+        """Where an action of the range would run in a mode the regime does not allow, put the MODE
+        statement into the program before it and refuse (``ConsoleLineAdded``), once; a line the
+        operator took out is not put back (under the lock)."""
+        regime = self._modes.regime
+        mode, set_here = self.robot_mode, False
+        for i, st in enumerate(statements):
+            if isinstance(st, SetMode):
+                mode, set_here = st.mode, True
+                continue
+            if not is_action(st):
+                continue
+            if regime is Regime.OPERATION:
+                need = Mode.FORCE if st.until is not None else Mode.POSITION
+                why = (f"operation regime: the {st.kind} with UNTIL runs in force mode" if need is Mode.FORCE
+                       else f"operation regime: the {st.kind} without UNTIL runs in position mode, where any contact stops it")
+            elif not set_here:
+                need = Mode.POSITION
+                why = f"{regime.value} regime: the robot is left in force mode; the {st.kind} runs in position mode"
+            else:
+                continue
+            if mode is need:
+                continue
+            line = SetMode(mode=need)
+            if self._desk.declined(line, regime):
+                if regime is Regime.OPERATION:
+                    raise ConflictError(
+                        f"{why}: the MODE {need.value.upper()} line the console added was deleted; insert MODE "
+                        f"{need.value.upper()} before statement {start + i + 1}, or leave the operation regime"
+                    )
+                return  # the operator's choice: it goes in the mode it is in
+            number = self._desk.add_console_line(start + i, line, why, regime)
+            raise ConsoleLineAdded(
+                f"submit needs MODE {need.value.upper()} first ({why}): added as line {number}, submit again"
+                f" (statements 1..{stop + 1})"
+            )
 
     def open_communication(self, outgoing: list[Statement]) -> int:
         """Number a new communication and list its statements as sending (under the lock)."""
@@ -282,6 +389,7 @@ class Dispatch:
         with self._ctx.lock:
             # one still sending learns its fate from its own submission (RobotRestarted in send)
             numbered = list(self._by_number.values())
+            self._session_from = len(self.sent)  # the new session starts in position mode
             self._by_number.clear()
             self._early.clear()
         self.mark_unknown(numbered, restart.describe())

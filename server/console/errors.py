@@ -26,3 +26,8 @@ class NotConnectedError(ConflictError):
 
 class ControlLockError(ConflictError):
     """Another client holds the control lock, or the token presented is not the holder's (HTTP 409)."""
+
+
+class ConsoleLineAdded(ConflictError):
+    """A submission the regime needs a line for (a MODE statement): the console put the line into
+    the program, where the operator sees it, and refused; submitting again sends it (HTTP 409)."""

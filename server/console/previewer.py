@@ -103,6 +103,18 @@ class Previewer:
                 return issue.message.replace(": ", f" ({format_statement(statements[issue.index])}): ", 1)
         return None
 
+    def path_not_clear(self, start: int, stop: int) -> dict[int, str]:
+        """For each statement of ``start..stop-1`` whose planned path is not clear, why: the arm
+        touches something, a joint leaves its range, or the plan is refused there (program
+        index -> sentence; under the lock). The operation regime reads it for actions without UNTIL."""
+        _poses, held = self._arm()
+        checked, _ = self.check(start, stop)
+        found: dict[int, str] = {}
+        for issue in checked.issues:
+            if issue.kind in ("plan", "joint_limit") or (issue.kind == "collision" and self._collision.involves_arm(issue.bodies, held)):
+                found.setdefault(issue.index, issue.message)
+        return found
+
     # -- showing -------------------------------------------------------------------------------
     def view(self) -> PreviewView:
         with self._ctx.lock:

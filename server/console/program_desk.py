@@ -6,6 +6,10 @@ from the operator's strokes, program files, and where the program starts.
 * Generation (``shared.program.generator``): every change of the virtual arm is a sample of the
   operator's stroke; letting go flushes the open segment. Generated statements go to the
   program's end; in the free regime they stream to the robot unless their path is hazardous.
+* Lines the console adds (a MODE statement the regime needs, ``server.console.dispatch``) are
+  inserted as ordinary, undoable edits and marked in the view (``added_by="console"`` with the
+  reason) until they are sent; the operator may delete them like any line. One the operator took
+  out is remembered as declined, so the console does not put it back for the same need.
 * The start: the program plans from ``start_q`` (the model's home, where the statements sent are
   predicted to end, or the robot's reported state after a re-sync); ``start_unknown`` says a
   prediction could not be made (a task, a stop or a failure came first).
@@ -25,7 +29,7 @@ import numpy as np
 
 from server.console.context import ConsoleContext
 from server.console.enums import Regime
-from server.console.errors import ConflictError, RefusedByRule
+from server.console.errors import ConflictError, ConsoleLineAdded, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
 from server.console.views import Caller, ProgramView, StatementView, VirtualState
@@ -43,6 +47,16 @@ if TYPE_CHECKING:
     from server.console.previewer import Previewer
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class ConsoleLine:
+    """A line the console put into the program: the statement itself (compared by identity, so an
+    equal line the operator typed is the operator's) and why."""
+
+    statement: Statement
+    reason: str
+    regime: Regime  # the regime whose need it was
 
 
 @dataclass
@@ -79,6 +93,8 @@ class ProgramDesk:
         self._stroke_mode: JogMode | None = None
         self.start = ProgramStart(cell.q_home.copy())
         self._confirmed: tuple[int, int, tuple] | None = None
+        self._console_lines: list[ConsoleLine] = []  # added by the console, not sent yet
+        self._declined: list[ConsoleLine] = []  # console lines the operator took out
 
     # -- reading -----------------------------------------------------------------------------
     @property
@@ -89,7 +105,8 @@ class ProgramDesk:
     def view(self) -> ProgramView:
         with self._ctx.lock:
             st = self._editor.state
-            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s) for i, s in enumerate(st.statements)]
+            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s,
+                                     **self._added_fields(s)) for i, s in enumerate(st.statements)]
             entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
             e = self._editor
             return ProgramView(
@@ -181,6 +198,8 @@ class ProgramDesk:
             self.check_not_previewing("load a program")
             self._editor = Editor(state)
             self._confirmed = None
+            self._console_lines.clear()
+            self._declined.clear()
         view = self.view()
         self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
         return view
@@ -229,6 +248,56 @@ class ProgramDesk:
     @property
     def editor(self) -> Editor:
         return self._editor
+
+    # -- lines the console adds (under the lock) -------------------------------------------------
+    def _added_fields(self, statement: Statement) -> dict:
+        line = next((c for c in self._console_lines if c.statement is statement), None)
+        return {} if line is None else {"added_by": "console", "added_reason": line.reason}
+
+    def _note_removed(self) -> None:
+        """Console lines no longer in the program were taken out by the operator (sent ones are
+        dropped by :meth:`lines_sent` first): they are declined."""
+        present = self._editor.state.statements
+        for line in list(self._console_lines):
+            if not any(s is line.statement for s in present):
+                self._console_lines.remove(line)
+                self._declined.append(line)
+
+    def declined(self, statement: Statement, regime: Regime) -> bool:
+        """Whether the operator took out a console line equal to ``statement`` that the console
+        added for ``regime`` (:meth:`forget_declined` clears that when the robot's mode changes)."""
+        self._note_removed()
+        return any(d.statement == statement and d.regime is regime for d in self._declined)
+
+    def forget_declined(self) -> None:
+        self._declined.clear()
+
+    def add_console_line(self, index: int, statement: Statement, reason: str, regime: Regime) -> int:
+        """Insert ``statement`` before program index ``index`` as a line added by the console (an
+        undoable edit, the selection kept on its statement); returns its line number (from 1).
+
+        Only parameter statements are added, which change no path: a confirmed preview whose
+        range the line joins at its start or inside stays confirmed, grown by the line."""
+        self._note_removed()
+        editor = self._editor
+        keep = editor.state.selected_statement
+        for result in (editor.select(index), editor.insert(statement)):
+            if isinstance(result, Refusal):
+                raise RefusedByRule(result)
+        state = editor.state
+        editor.select(next((i for i, s in enumerate(state.entries) if s is keep), state.empty_index))
+        self._console_lines.append(ConsoleLine(statement, reason, regime))
+        c = self._confirmed
+        if c is not None and c[0] <= index < c[1] and tuple(state.statements[c[0]:c[1] + 1]) == (
+            *c[2][: index - c[0]], statement, *c[2][index - c[0]:]
+        ):
+            self._confirmed = (c[0], c[1] + 1, tuple(state.statements[c[0]:c[1] + 1]))
+        log.info("console added line %d: %s (%s)", index + 1, format_statement(statement), reason)
+        return index + 1
+
+    def lines_sent(self, statements: list[Statement]) -> None:
+        """These statements left the program for the robot: they are no longer console lines."""
+        self._console_lines = [c for c in self._console_lines if not any(c.statement is s for s in statements)]
 
     # -- generation ----------------------------------------------------------------------------
     def sample_stroke(self, before: VirtualState, after: VirtualState, mode: JogMode) -> list[Statement]:
@@ -290,6 +359,9 @@ class ProgramDesk:
                     f"held back, not sent to the robot: {hazard}; the program keeps it (undo, edit or delete it)"))])
                 return
             try:
-                self.dispatch.submit(0, self.state.empty_index, client=self._control.holder)
+                try:
+                    self.dispatch.submit(0, self.state.empty_index, client=self._control.holder)
+                except ConsoleLineAdded:  # the line is in the program, shown: stream it with the rest
+                    self.dispatch.submit(0, self.state.empty_index, client=self._control.holder)
             except TeleprogError as exc:
                 self._ctx.bus.emit([Notice(level="warning", message=f"streaming refused: {exc}")])

@@ -95,8 +95,7 @@ class Recovery:
             robot, loop = dispatch.need_robot()
             outgoing: list[Statement] = [motion]
             if dispatch.robot_mode is Mode.FORCE:
-                outgoing.insert(0, SetMode(mode=Mode.POSITION))
-                dispatch.robot_mode = Mode.POSITION
+                outgoing.insert(0, SetMode(mode=Mode.POSITION))  # joins the sent list: robot_mode follows
             comm = dispatch.open_communication(outgoing)
             self._desk.start.unknown = True  # the program goes on from where the robot ends: re-sync
             key = self._open("abort before back away")

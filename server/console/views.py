@@ -94,6 +94,10 @@ class StatementView(_View):
     kind: str = Field(description="MOVE, DRIVE, ..., or EMPTY for the trailing empty statement")
     text: str = Field(description="the statement's text form (mm, deg)")
     statement: Statement | None = Field(None, description="JSON form (SI); None for the empty statement")
+    added_by: Literal["console"] | None = Field(
+        None, description="'console' for a line the console put in (a MODE the regime needs); None: the operator's"
+    )
+    added_reason: str | None = Field(None, description="why the console added the line (it can be deleted like any other)")
 
 
 class ProgramView(_View):

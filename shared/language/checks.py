@@ -22,10 +22,11 @@ column (text form) or JSON pointer (JSON form), and the field at fault where the
 * ``names``: a TASK names a known task (``shared.language.tasks``) with the right number and
   kind of arguments, and the objects and features exist in the cell; the gripper must hold
   what ``release``/``extract_peg``/``insert_peg`` need and be empty for ``grasp``;
-* ``program``: after a task whose end pose is unknown (``insert_peg``) nothing that moves the
-  arm may follow (§4.3.6: task calls are unpredictable, so they close the program). Tasks that
-  keep the arm still (grasp, release) or end at a pose their contract fixes (extract_peg) may
-  be followed; ``strict_tasks=True`` applies §4.3.6 literally: nothing follows any task.
+* ``program``: what may follow a task call (``shared.language.task_rule``, the rule the editor
+  and the planner apply too): after a task whose end pose is unknown (``insert_peg``) nothing
+  that moves the arm may follow. Tasks that keep the arm still (grasp, release) or end at a
+  pose their contract fixes (extract_peg) may be followed; ``strict_tasks=True`` applies §4.3.6
+  literally: nothing follows any task.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ from shared.language.statements import (
     TaskCall,
     is_action,
 )
+from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArgKind, TaskSpec, resolve_name
 from shared.robots.ik import solve_ik
 from shared.robots.model import LIMIT_TOLERANCE, Robot
@@ -169,7 +171,7 @@ class _Checker:
         if cell is not None:
             held = [o.name for o in cell.objects if o.held]
             self.holding = held[0] if held else None
-        self.unknown_after: tuple[str, int] | None = None  # task that left the arm pose unknown
+        self.unknown_after: UnknownPose | None = None  # task that left the arm pose unknown
         self.strict_tasks = strict_tasks
         self.strict_after: tuple[str, int] | None = None  # any task, when strict_tasks
 
@@ -230,13 +232,8 @@ class _Checker:
                 self.add(index, "program", f"{st.kind} cannot follow TASK {name} ({self.where(at)}): nothing may follow a task call")
                 q_after.append(None)
                 continue
-            if self.unknown_after is not None and (is_action(st) or (isinstance(st, TaskCall) and self._moves_arm(st))):
-                name, at = self.unknown_after
-                self.add(
-                    index, "program",
-                    f"{st.kind} cannot follow TASK {name} ({self.where(at)}): the arm's pose after that task "
-                    "is known only when the robot reports it; end the program there",
-                )
+            if self.unknown_after is not None and not may_follow(st, self.unknown_after):
+                self.add(index, "program", why_not(st, self.unknown_after, self.where(self.unknown_after.index)))
                 q_after.append(None)
                 continue
             bad = _non_finite(st)
@@ -261,11 +258,6 @@ class _Checker:
                     self.strict_after = (st.name, index)
             q_after.append(None if self.q is None else self.q.copy())
         return q_after
-
-    @staticmethod
-    def _moves_arm(st: TaskCall) -> bool:
-        spec = TASKS.get(st.name) or TASKS.get(st.name.lower())
-        return spec is None or spec.arm_end != "still"
 
     def move(self, index: int, st: Move) -> None:
         if len(st.joints) != self.robot.dof:
@@ -350,7 +342,7 @@ class _Checker:
             known = ", ".join(t.signature() for t in TASKS.values())
             self.add(index, "names", f"unknown task {st.name!r}; known tasks: {known}", "name")
             self.q = None
-            self.unknown_after = (st.name, index)
+            self.unknown_after = pose_after(st, index, self.unknown_after)
             return
         if len(st.args) != len(spec.params):
             self.add(index, "names", f"TASK {spec.name} takes {len(spec.params)} argument(s): {spec.signature()}; got {len(st.args)}", "args")
@@ -358,9 +350,9 @@ class _Checker:
         self.gripper(index, spec, args)
         if spec.arm_end == "unknown":
             self.q = None
-            self.unknown_after = (spec.name, index)
+            self.unknown_after = pose_after(st, index, self.unknown_after)
         elif spec.arm_end == "retract" and self.q is not None:
-            self.retract(index, spec, args)
+            self.retract(index, st, spec, args)
 
     def resolve(self, index: int, spec: TaskSpec, kind: ArgKind, name: str) -> str | None:
         if self.cell is None:
@@ -394,11 +386,11 @@ class _Checker:
             if spec.name == "release":
                 self.holding = None
 
-    def retract(self, index: int, spec: TaskSpec, args: list[str | None]) -> None:
+    def retract(self, index: int, st: TaskCall, spec: TaskSpec, args: list[str | None]) -> None:
         hole = args[1] if len(args) > 1 else None
         if hole is None or self.cell is None or self.q is None:
             self.q = None
-            self.unknown_after = (spec.name, index)
+            self.unknown_after = pose_after(st, index, self.unknown_after, "unknown")
             return
         axis = self.cell.features[hole].world_T_feature[:3, 2]
         target = self.world_T_tcp(self.q)
@@ -407,7 +399,7 @@ class _Checker:
         if q is None:
             self.add(index, "reach", f"TASK {spec.name}: the pose {EXTRACT_LIFT_M * 1e3:g} mm up the axis of {hole} is unreachable")
             self.q = None
-            self.unknown_after = (spec.name, index)
+            self.unknown_after = pose_after(st, index, self.unknown_after, "unknown")
             return
         self.q = q
 

@@ -51,6 +51,7 @@ from shared.language.statements import (
     Statement,
     TaskCall,
 )
+from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArmEnd, resolve_name
 from shared.motion.frames import CellFrames
 from shared.motion.limits import MotionLimits, default_limits
@@ -80,15 +81,12 @@ class InterpreterState:
     speed: Speed = DEFAULT_SPEED
     mode: Mode = Mode.POSITION
     index: int = 0
-    after_task: str | None = None
+    unknown: UnknownPose | None = None
 
-
-def _moves_arm(statement: Statement) -> bool:
-    """Actions, and tasks that are not known to keep the arm still."""
-    if isinstance(statement, TaskCall):
-        spec = TASKS.get(statement.name) or TASKS.get(statement.name.lower())
-        return spec is None or spec.arm_end != "still"
-    return isinstance(statement, (Move, Drive, Draw, Rotate, Moves))
+    @property
+    def after_task(self) -> str | None:
+        """The task after which the pose is unknown (``shared.language.task_rule``), or None."""
+        return None if self.unknown is None else self.unknown.task
 
 
 @dataclass(frozen=True)
@@ -141,7 +139,7 @@ class Interpreter:
     def resume_at(self, q: Sequence[float] | np.ndarray) -> None:
         """The arm is at ``q`` (after an early stop or a task): plan on from there."""
         qa = self.robot.as_q(q)
-        self._state = replace(self._state, q=qa.copy(), world_T_tcp=self.frames.world_T_tcp(self.robot, qa), after_task=None)
+        self._state = replace(self._state, q=qa.copy(), world_T_tcp=self.frames.world_T_tcp(self.robot, qa), unknown=None)
 
     # -- planning -----------------------------------------------------------------------------
     def plan_next(self, statement: Statement) -> Segment:
@@ -151,12 +149,8 @@ class Interpreter:
         state = self._state
         index = state.index
         try:
-            if state.after_task is not None and _moves_arm(statement):
-                raise PlanRefused(
-                    RefusalReason.AFTER_TASK,
-                    f"{statement.kind} follows TASK {state.after_task}, after which the arm's pose is known only "
-                    "when the robot reports it",
-                )
+            if state.unknown is not None and not may_follow(statement, state.unknown):
+                raise PlanRefused(RefusalReason.AFTER_TASK, why_not(statement, state.unknown))
             segment = self._plan(statement, state, index)
         except PlanRefused as exc:
             raise exc.at_index(index) from None
@@ -168,7 +162,7 @@ class Interpreter:
             speed=statement.speed if isinstance(statement, SetSpeed) else state.speed,
             mode=statement.mode if isinstance(statement, SetMode) else state.mode,
             index=index + 1,
-            after_task=statement.name if segment.arm_end == "unknown" else state.after_task,  # type: ignore[union-attr]
+            unknown=pose_after(statement, index, state.unknown, segment.arm_end),  # type: ignore[arg-type]
         )
         for w in segment.warnings:
             log.info("statement %d (%s): %s", index + 1, statement.kind, w)

@@ -34,6 +34,7 @@ from typing import Final
 
 from shared.errors import InputError
 from shared.language.statements import Speed, Statement, Until, is_action, is_parameter, is_task
+from shared.language.task_rule import UnknownPose, may_follow, moves_arm, pose_after, why_not
 from shared.program.rules import Refusal, Rule, program_violations
 
 log = logging.getLogger(__name__)
@@ -178,8 +179,17 @@ class ProgramState:
 
     @property
     def ends_with_task(self) -> bool:
-        """True when the last real statement is a task call: nothing more may be inserted after it."""
+        """True when the last real statement is a task call."""
         return bool(self.statements) and is_task(self.statements[-1])
+
+    @property
+    def unknown_pose(self) -> UnknownPose | None:
+        """The task call after which the arm's pose is unknown (only what keeps the arm still may
+        follow it: ``shared.language.task_rule``), or ``None`` when the pose is known throughout."""
+        unknown: UnknownPose | None = None
+        for index, statement in enumerate(self.statements):
+            unknown = pose_after(statement, index, unknown)
+        return unknown
 
     # ---------------------------------------------------------------- selection
 
@@ -231,12 +241,8 @@ class ProgramState:
                 f"a task call can only be inserted before the trailing empty statement "
                 f"(statement {self.selected_index + 1} is selected)",
             )
-        if at_end and self.ends_with_task:
-            return Refusal(
-                Rule.INSERT_AFTER_TASK,
-                f"nothing can be inserted after the task call {self.statements[-1].name!r}: "
-                "what a task leaves behind cannot be predicted",
-            )
+        if at_end and not may_follow(statement, unknown := self.unknown_pose):
+            return Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown))
         return None
 
     def check_delete(self) -> Refusal | None:
@@ -252,6 +258,12 @@ class ProgramState:
                 Rule.DELETE_ACTION_NOT_LAST,
                 f"the {statement.kind} action (statement {index + 1}) is not just before the trailing empty statement; "
                 "deleting it would break action continuity",
+            )
+        if is_task(statement) and moves_arm(statement) and any(moves_arm(s) for s in self.statements[index + 1 :]):
+            return Refusal(
+                Rule.DELETE_ACTION_NOT_LAST,
+                f"TASK {statement.name} (statement {index + 1}) moves the arm and a motion follows it; "
+                "deleting it would break action continuity (delete the motions after it first)",
             )
         return None
 

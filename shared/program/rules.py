@@ -11,8 +11,12 @@ The rules, as §4.3.6 states them (2) "语句管理规则", 3) preview, 4) submi
 * Exactly one statement is selected; by default the trailing empty one. Inserting and modifying
   leave the selection on the same statement; deleting moves it to the next statement.
 * Insertion puts a new *real* statement before the selected one. Action and task-call statements
-  only before the trailing empty statement; parameter statements before any statement. A task
-  call is unpredictable, so nothing may be inserted after one.
+  only before the trailing empty statement; parameter statements before any statement. After a
+  task call whose end pose only the robot knows (``insert_peg``), only statements that leave the
+  arm where it is may follow: parameter statements and tasks that keep the arm still
+  (``shared.language.task_rule``: the task registry's end-state contracts, the rule ``teleprog
+  check`` and the planner apply too; the thesis's literal "nothing after a task call" is
+  ``teleprog check --strict-tasks``).
 * Any selected statement but the trailing empty one may be deleted; an action only when it is
   the statement just before the trailing empty one; parameter statements anywhere.
 * Anything but a task call or the empty statement may be modified: parameter statements
@@ -35,7 +39,7 @@ from enum import Enum
 from typing import TypeVar
 
 from shared.errors import InputError
-from shared.language.statements import is_task
+from shared.language.task_rule import task_rule_breaks
 
 
 class Rule(str, Enum):
@@ -58,7 +62,7 @@ class Rule(str, Enum):
     INSERT_TASK_AT_END = "insert.task-at-end"
     """A task call can only be inserted before the trailing empty statement."""
     INSERT_AFTER_TASK = "insert.after-task"
-    """Nothing can be inserted after a task call (its outcome cannot be predicted)."""
+    """Nothing that moves the arm can be inserted after a task call whose end pose is unknown."""
 
     DELETE_EMPTY = "delete.empty"
     """The trailing empty statement cannot be deleted."""
@@ -89,7 +93,7 @@ class Rule(str, Enum):
     """There is no undone operation to redo."""
 
     PROGRAM_AFTER_TASK = "program.after-task"
-    """In a program, no statement may follow a task call."""
+    """In a program, nothing that moves the arm may follow a task call whose end pose is unknown."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,22 +137,9 @@ class Violation:
 def program_violations(statements: Sequence[object]) -> list[Violation]:
     """Rules a program given as a whole (read from a file, received) breaks.
 
-    Only one §4.3.6 rule constrains a bare list of statements: nothing may follow a task call.
+    Only one rule constrains a bare list of statements: what may follow a task call
+    (``shared.language.task_rule``, the same rule ``teleprog check`` and the planner apply).
     Continuity holds by construction in a list of target-only statements; the other rules are
     about editing operations.
     """
-    violations: list[Violation] = []
-    for index, statement in enumerate(statements):
-        if is_task(statement) and index + 1 < len(statements):
-            following = len(statements) - index - 1
-            violations.append(
-                Violation(
-                    index + 1,
-                    Rule.PROGRAM_AFTER_TASK,
-                    f"statement {index + 2} follows the task call at statement {index + 1} "
-                    f"({following} statement{'s' if following > 1 else ''} after it); "
-                    "a task call must be the last statement",
-                )
-            )
-            break
-    return violations
+    return [Violation(b.index, Rule.PROGRAM_AFTER_TASK, b.message) for b in task_rule_breaks(statements)]

@@ -4,8 +4,8 @@ program panel, submits the piece from the Submit tab, watches every sent stateme
 the sent list, re-syncs the virtual arm when the page offers it after the insertion, and ends with
 the peg standing in HOLE2 and the gripper empty.
 
-The pieces are those of the API test (``tests/e2e/test_console_session.py``): the editor allows
-nothing after a task call, so each task call ends a submission. The test has its own console
+The pieces are those of the API test (``tests/e2e/test_console_session.py``), typed line by line
+and sent piece by piece (the shipped file in one piece is ``test_peg_transfer_file_page``). The test has its own console
 (``teleprog up --delay-ms 200``) so the other browser modules' programs and robot state do not
 interfere; the session's state is read through GET requests only, to check what the page showed.
 """

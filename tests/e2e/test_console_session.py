@@ -188,7 +188,7 @@ def test_bad_input_is_a_clear_4xx(up: RunningConsole) -> None:
     assert {"/api/submit", "/api/preview/begin", "/api/program/insert", "/api/robot/stop", "/api/resync"} <= set(paths)
 
 
-def test_regimes_free_streams_and_operation_goes_one_step_in_force_mode(up: RunningConsole) -> None:
+def test_regimes_free_streams_and_operation_goes_one_step_with_its_mode_as_a_line(up: RunningConsole) -> None:
     wait_for("the link", lambda: call(up, "GET", "/api/link")["connected"])
     wait_for("nothing pending", lambda: call(up, "GET", "/api/sent")["pending"] == 0)
     if call(up, "GET", "/api/divergence")["diverged"]:
@@ -206,30 +206,41 @@ def test_regimes_free_streams_and_operation_goes_one_step_in_force_mode(up: Runn
     assert [s["text"].split()[:2] for s in sent] == [["DRIVE", "J4"]]
     assert call(up, "GET", "/api/program")["empty_index"] == 0
     wait_for("the streamed statement done", lambda: call(up, "GET", "/api/sent")["pending"] == 0)
-    # operation: one statement at a time, actions need UNTIL, force mode first
+    # operation: one motion per step, after the previous one is final; a contact move (UNTIL)
+    # runs in force mode, and the console puts the MODE FORCE into the program as a line first
     call(up, "PUT", "/api/regime", {"regime": "operation"})
-    call(up, "POST", "/api/program/insert", {"text": "EVENT near"})
-    call(up, "POST", "/api/program/insert", {"text": "EVENT touching"})
+    j4 = round(call(up, "GET", "/api/arm")["q_deg"][3])
+    # the contact move is slow (some seconds), so the next submission finds it still running
+    touch, turn = f"DRIVE J4 TO {j4 + 20} deg WITH SPEED 2 % UNTIL CONTACT", f"DRIVE J4 TO {j4 + 24} deg"
+    for text in ("EVENT near", touch, turn):
+        call(up, "POST", "/api/program/insert", {"text": text})
+    r = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 3})
+    assert r.status_code == 409 and "one motion per step" in r.json()["detail"]
     r = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 2})
-    assert r.status_code == 409 and "one statement at a time" in r.json()["detail"]
-    sent = call(up, "POST", "/api/submit", {"start": 0, "stop": 1})["items"]
-    assert [s["text"] for s in sent[-2:]] == ["MODE FORCE", "EVENT near"]
+    assert r.status_code == 409 and "MODE FORCE first" in r.json()["detail"] and "added as line 2" in r.json()["detail"]
+    added = call(up, "GET", "/api/program")["entries"][1]
+    assert added["text"] == "MODE FORCE" and added["added_by"] == "console"
+    sent = call(up, "POST", "/api/submit", {"start": 0, "stop": 3})["items"]
+    assert [s["text"] for s in sent[-3:]] == ["EVENT near", "MODE FORCE", touch]  # the lines, as shown
     r = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 1})
     assert r.status_code == 409 and "previous statement" in r.json()["detail"]
     wait_for("the step done", lambda: call(up, "GET", "/api/sent")["pending"] == 0)
-    refused = up.api("POST", "/api/program/delete", headers=CLIENT)  # the empty statement is selected
+    call(up, "POST", "/api/program/select", {"index": 1})  # the empty statement
+    refused = up.api("POST", "/api/program/delete", headers=CLIENT)
     assert refused.status_code == 409 and refused.json()["rule"] == "delete.empty"
-    # back to free: position mode again before anything else
+    # back to free: the robot is in force mode, so the console adds MODE POSITION before the move
     call(up, "PUT", "/api/regime", {"regime": None})
     call(up, "PUT", "/api/regime", {"regime": "free"})
-    sent = call(up, "POST", "/api/submit", {"start": 0, "stop": 1})["items"]
-    assert [s["text"] for s in sent[-2:]] == ["MODE POSITION", "EVENT touching"]
+    r = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 1})
+    assert r.status_code == 409 and "added as line 1" in r.json()["detail"]
+    sent = call(up, "POST", "/api/submit", {"start": 0, "stop": 2})["items"]
+    assert [s["text"] for s in sent[-2:]] == ["MODE POSITION", turn]
     wait_for("all done", lambda: call(up, "GET", "/api/sent")["pending"] == 0)
 
 
-# --- the peg transfer of thesis §4.6, in the pieces the editor's rules allow (nothing may follow a
-# task call, so each task call ends a submission); the console tracks what the robot holds, sees
-# the divergence the unpredictable insertion leaves, and re-syncs the arm and the peg.
+# --- the peg transfer of thesis §4.6, sent in pieces (each task call ends one, so every piece is
+# seen done before the next); the console tracks what the robot holds, sees the divergence the
+# unpredictable insertion leaves, and re-syncs the arm and the peg.
 
 PIECES = [
     ["SPEED 50 %", "MOVES TO (0, -80, 160) mm (180, 0, 0) deg IN WORK", "EVENT above_peg",

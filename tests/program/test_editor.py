@@ -59,7 +59,8 @@ BY_KIND: dict[str, st.SearchStrategy] = {
     "MODE": st.builds(SetMode, mode=st.sampled_from(list(Mode))),
     "EVENT": st.builds(Event, name=_names),
     "TASK": st.builds(
-        TaskCall, name=st.sampled_from(["insert_peg", "grasp", "release"]), args=st.lists(_names, max_size=2).map(tuple)
+        TaskCall, name=st.sampled_from(["insert_peg", "extract_peg", "grasp", "release", "fly"]),
+        args=st.lists(_names, max_size=2).map(tuple),
     ),
 }
 actions = st.one_of(*(BY_KIND[k] for k in ("MOVE", "DRIVE", "DRAW", "ROTATE", "MOVES")))
@@ -68,8 +69,20 @@ tasks = BY_KIND["TASK"]
 statements = st.one_of(actions, parameters, tasks)
 
 
+# the task registry's end-state contracts, restated: grasp and release keep the arm still,
+# extract_peg ends where its contract says; insert_peg (and a task nobody knows) ends where only
+# the robot can tell
+STILL_TASKS = {"grasp", "release"}
+KNOWN_END_TASKS = STILL_TASKS | {"extract_peg"}
+
+
 def is_motion(statement: object) -> bool:
-    return is_action(statement) or is_task(statement)
+    """Moves the arm: an action, or a task that does not keep the arm still."""
+    return is_action(statement) or (is_task(statement) and statement.name not in STILL_TASKS)
+
+
+def ends_unknown(statement: object) -> bool:
+    return is_task(statement) and statement.name not in KNOWN_END_TASKS
 
 
 def end_key(statement: object) -> object:
@@ -90,7 +103,7 @@ def expected_insert(state: ProgramState, statement: object) -> Rule | None:
         return Rule.INSERT_ACTION_AT_END
     if is_task(statement) and not before_empty:
         return Rule.INSERT_TASK_AT_END
-    if any(is_task(s) for s in state.statements[: state.selected]):
+    if before_empty and is_motion(statement) and any(ends_unknown(s) for s in state.statements):
         return Rule.INSERT_AFTER_TASK
     return None
 
@@ -100,8 +113,11 @@ def expected_delete(state: ProgramState) -> Rule | None:
         return Rule.PREVIEW_LOCKED
     if state.selected == len(state.statements):
         return Rule.DELETE_EMPTY
-    if is_action(state.statements[state.selected]) and state.selected != len(state.statements) - 1:
+    selected = state.statements[state.selected]
+    if is_action(selected) and state.selected != len(state.statements) - 1:
         return Rule.DELETE_ACTION_NOT_LAST
+    if is_task(selected) and is_motion(selected) and any(is_motion(s) for s in state.statements[state.selected + 1 :]):
+        return Rule.DELETE_ACTION_NOT_LAST  # a task that moves the arm is a motion too
     return None
 
 
@@ -408,9 +424,11 @@ class EditorMachine(RuleBasedStateMachine):
         assert all(is_action(e) or is_parameter(e) or is_task(e) for e in entries[:-1])
 
     @invariant()
-    def nothing_after_a_task(self):
+    def nothing_moves_after_a_task_with_an_unknown_end(self):
         statements = self.editor.state.statements
-        assert not any(is_task(s) for s in statements[:-1])
+        for i, s in enumerate(statements):
+            if ends_unknown(s):
+                assert not any(is_motion(later) for later in statements[i + 1 :])
 
     @invariant()
     def selection_in_range(self):
@@ -468,7 +486,7 @@ SCENARIOS: dict[Rule, Callable[[], object]] = {
     Rule.INSERT_REAL: lambda: editor_with(D1).insert(EMPTY),
     Rule.INSERT_ACTION_AT_END: lambda: editor_with(D1, SPD, selected=1).insert(D2),
     Rule.INSERT_TASK_AT_END: lambda: editor_with(D1, SPD, selected=1).insert(TASK),
-    Rule.INSERT_AFTER_TASK: lambda: editor_with(D1, TASK).insert(EV),
+    Rule.INSERT_AFTER_TASK: lambda: editor_with(D1, TASK).insert(D2),
     Rule.DELETE_EMPTY: lambda: editor_with(D1).delete(),
     Rule.DELETE_ACTION_NOT_LAST: lambda: editor_with(D1, D2, selected=0).delete(),
     Rule.MODIFY_EMPTY: lambda: editor_with(D1).modify(D2),
@@ -490,13 +508,27 @@ def test_each_rule_refuses_with_its_id(rule_: Rule) -> None:
     assert_refused(SCENARIOS[rule_](), rule_)
 
 
-def test_a_program_with_a_statement_after_a_task_is_rejected() -> None:
+def test_a_program_that_moves_the_arm_after_an_unknown_end_is_rejected() -> None:
     (violation,) = program_violations([D1, TASK, SPD, D2])
     assert violation.rule is Rule.PROGRAM_AFTER_TASK
-    assert violation.index == 2
+    assert violation.index == 3  # the DRAW; the SPEED before it leaves the arm where it is
+    assert "DRAW cannot follow TASK insert_peg (statement 2)" in violation.message
     assert program_violations([D1, SPD, TASK]) == []
-    with pytest.raises(InputError, match="task call"):
-        ProgramState.of([TASK, EV])
+    assert program_violations([TASK, EV, TaskCall(name="release"), MODE]) == []  # what keeps the arm still may follow
+    with pytest.raises(InputError, match="cannot follow TASK insert_peg"):
+        ProgramState.of([TASK, TaskCall(name="extract_peg", args=("peg", "HOLE2"))])
+
+
+def test_after_a_task_with_a_known_end_anything_may_follow() -> None:
+    grasp, extract = TaskCall(name="grasp", args=("peg",)), TaskCall(name="extract_peg", args=("peg", "HOLE1"))
+    editor = Editor()
+    for statement in (D1, grasp, extract, D2, EV, TASK, TaskCall(name="release"), MODE):
+        unwrap(editor.insert(statement))
+    assert editor.state.unknown_pose is not None and editor.state.unknown_pose.task == "insert_peg"
+    assert_refused(editor.insert(D1), Rule.INSERT_AFTER_TASK)
+    assert_refused(editor.insert(extract), Rule.INSERT_AFTER_TASK)
+    unwrap(editor.select(3))  # extract_peg moves the arm and the DRAW after it starts where it ends
+    assert_refused(editor.delete(), Rule.DELETE_ACTION_NOT_LAST)
 
 
 # ------------------------------------------------------------------ the rules, one behaviour at a time
@@ -520,13 +552,13 @@ def test_insert_goes_before_the_selection_and_keeps_it() -> None:
     assert editor.state.selected_statement == D2
 
 
-def test_parameters_may_go_before_a_task_but_nothing_after_it() -> None:
+def test_parameters_may_go_anywhere_around_a_task_but_no_motion_after_an_unknown_end() -> None:
     editor = editor_with(D1, TASK)
-    assert_refused(editor.insert(SPD), Rule.INSERT_AFTER_TASK)
     assert_refused(editor.insert(D2), Rule.INSERT_AFTER_TASK)
+    unwrap(editor.insert(SPD))  # a parameter leaves the arm where the task left it
     unwrap(editor.select(1))
     unwrap(editor.insert(MODE))
-    assert editor.state.statements == (D1, MODE, TASK)
+    assert editor.state.statements == (D1, MODE, TASK, SPD)
 
 
 def test_delete_moves_selection_to_the_next_statement() -> None:

@@ -192,7 +192,7 @@ def test_program_files_load_save_and_broken_files_keep_the_program(session: Sess
     with pytest.raises(InputError, match=r"broken\.tp:2:"):
         session.program.load("SPEED 10 %\nDRAW TO (1, 2) mm\n", "broken.tp")
     with pytest.raises(InputError, match="task"):
-        session.program.load("TASK grasp(PEG)\nDRIVE J1 TO 1 deg\n", "after_task.tp")
+        session.program.load("TASK insert_peg(PEG, HOLE2)\nDRIVE J1 TO 1 deg\n", "after_task.tp")
     assert [e.kind for e in session.program.view().entries] == ["SPEED", "DRIVE", "TASK", "EMPTY"]
 
 

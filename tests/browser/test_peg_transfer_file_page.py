@@ -1,0 +1,104 @@
+"""The "Done when" of issue 16: the whole peg transfer of thesis §4.6 from the page, with the
+shipped ``assets/programs/peg_transfer.tp`` loaded in one piece through the Program tab's upload
+button, previewed to its end on the Preview tab in the quasi-operation (offline) regime, and
+submitted with the Submit tab's button, over a real telerobot and link (``teleprog up --delay-ms
+200``). It ends with every line of the file done on the robot, exactly those lines sent, and the
+peg reported standing in HOLE2 with the gripper empty.
+
+Before issue 16 the upload was refused ("statement 6 follows the task call at statement 5"): the
+editor let nothing follow any task call while ``teleprog check`` accepted the file. Both now read
+one rule (``shared.language.task_rule``). The session's state is read through GET requests only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from console_page import ConsolePage, wait_for
+from support import RunningConsole, screenshot_if_failed, start_console, stop_process
+
+from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.formatter import format_statement
+from shared.language.parser import parse_file
+from shared.paths import ASSETS_DIR
+
+pytestmark = pytest.mark.browser
+
+PROGRAM = ASSETS_DIR / "programs" / "peg_transfer.tp"
+
+
+@pytest.fixture(scope="module")
+def file_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningConsole]:
+    running = start_console(tmp_path_factory.mktemp("peg_file_page"), "--delay-ms", "200")
+    yield running
+    stop_process(running.proc)
+
+
+@pytest.fixture
+def ui(file_console: RunningConsole, chromium, request) -> Iterator[ConsolePage]:
+    context = chromium.new_context(viewport={"width": 1400, "height": 900})
+    page = ConsolePage(context.new_page(), file_console, quick_clicks=True)
+    page.open()
+    yield page
+    screenshot_if_failed(request, page.page)
+    context.close()
+
+
+def upload_program(ui: ConsolePage, path) -> None:
+    """The Program tab's "Load program file" button takes the file (its file input, as a file
+    chooser would fill it)."""
+    ui.tab("Program")
+    button = ui.page.get_by_role("button", name="Load program file")
+    button.wait_for(state="visible")
+    ui.page.locator("input[type=file]").first.set_input_files(str(path))
+
+
+def preview_to_the_end(ui: ConsolePage, last: int) -> None:
+    """Start the preview of statements 1..last and step through it to its end (the Step button
+    jumps to the end of the statement playing), then End it."""
+    ui.tab("Preview")
+    wait_for(lambda: ui.number_box("To statement").input_value() == str(last), what=f"the preview range 1-{last}")
+    ui.click("Start preview")
+    wait_for(lambda: ui.session()["preview"]["active"], what=f"the preview running (page notice: {ui.notice()!r})")
+    for _ in range(3 * last):
+        if ui.session()["program"]["confirmed"] == [0, last]:
+            break
+        ui.click("Step")
+    wait_for(lambda: ui.session()["program"]["confirmed"] == [0, last], what="the range previewed to its end")
+    ui.text_appears(r"No warnings\.")
+    ui.click("End")
+    wait_for(lambda: not ui.session()["preview"]["active"], what="the preview ended")
+
+
+def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) -> None:
+    expected = [format_statement(s) for s in parse_file(PROGRAM).statements]
+    ui.text_appears(r"Link: connected", timeout=30)
+    ui.text_appears(r"robot idle", timeout=30)
+    ui.choose_regime("quasi")
+    wait_for(lambda: ui.session()["regime"]["regime"] == "quasi", what="the quasi-operation regime")
+
+    upload_program(ui, PROGRAM)
+    wait_for(lambda: len(ui.session()["program"]["entries"]) == len(expected) + 1,
+             what=f"the file loaded (page notice: {ui.notice()!r})")
+    ui.text_appears(rf"{len(expected)}: MODE POSITION")  # the program list shows the file's last line
+    assert [e["text"] for e in ui.session()["program"]["entries"][:-1]] == expected
+
+    preview_to_the_end(ui, len(expected))
+    ui.submit_range(1, len(expected))
+    wait_for(lambda: len(ui.session()["program"]["entries"]) == 1,
+             what=f"the program left for the robot (page notice: {ui.notice()!r})")
+    lines = ui.wait_sent_final(len(expected), timeout=90)
+    # the page lists exactly the file's statements, each numbered by the robot in order and done
+    assert [line["text"] for line in lines[-len(expected):]] == expected, lines
+    assert all(line["status"] == "done" for line in lines[-len(expected):]), lines
+    sent = ui.console.api("GET", "/api/sent").json()["items"]
+    assert [s["text"] for s in sent] == expected  # nothing went that was not a line of the file
+
+    remote = wait_for(lambda: (r := ui.console.api("GET", "/api/remote").json())["state"] == "idle" and r,
+                      what="the robot at rest")
+    assert remote["held"] is None
+    peg_now = np.asarray(remote["object_poses"]["peg"])
+    hole2 = load_cell(DEFAULT_CELL).features["HOLE2"].world_T_feature
+    np.testing.assert_allclose(peg_now[:2, 3], hole2[:2, 3], atol=0.003)  # the peg stands in HOLE2
