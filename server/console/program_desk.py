@@ -32,7 +32,13 @@ from server.console.enums import Regime
 from server.console.errors import ConflictError, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
-from server.console.views import Caller, ProgramView, RefusalView, StatementView, VirtualState
+from server.console.views import (
+    Caller,
+    ProgramView,
+    RefusalView,
+    StatementView,
+    VirtualState,
+)
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement

@@ -13,7 +13,6 @@ from __future__ import annotations
 import re
 
 import pytest
-
 from console_page import ConsolePage, wait_for
 from support import screenshot_if_failed, start_console, stop_process
 
@@ -149,7 +148,8 @@ def test_each_line_shows_its_planned_duration(ui: ConsolePage) -> None:
     entries = wait_for(lambda: (e := program(ui)["entries"]) and e[0]["duration_s"] and e, what="durations")
     for entry in entries[:-1]:
         shown = line(ui, entry["index"]).locator("[data-duration]")
-        wait_for(lambda: shown.inner_text() == f"{entry['duration_s']:.1f} s", timeout=PAGE_S, what=f"duration of line {entry['index'] + 1}")
+        text = f"{entry['duration_s']:.1f} s"
+        wait_for(lambda shown=shown, text=text: shown.inner_text() == text, timeout=PAGE_S, what=f"duration of line {entry['index'] + 1}")
     assert entries[0]["duration_s"] > 0.1 and entries[1]["duration_s"] == 0.0
 
 
@@ -181,7 +181,7 @@ def test_the_sent_list_pages_to_its_oldest_entries(ui: ConsolePage) -> None:
     shown = ui.text_appears(rf"Page {pages} of {pages} \(oldest\): sent 1-\d+ of {total}", timeout=PAGE_S)
     assert re.search(r"sent 1-", shown)
     body = ui.page.inner_text("body")
-    assert re.search(r"^#1 SPEED", body, re.M), "the oldest sent statement is reachable"
+    assert re.search(r"^#1 SPEED", body, re.MULTILINE), "the oldest sent statement is reachable"
     ui.click("Newer")
     if pages > 2:
         ui.text_appears(rf"Page {pages - 1} of {pages}", timeout=PAGE_S)

@@ -75,9 +75,10 @@ def test_each_statement_has_its_planned_duration(session: Session) -> None:
 
 
 def test_the_http_api_selects_moves_and_deletes_ranges(session: Session) -> None:
+    from fastapi import FastAPI
+
     from server.api.program import router
     from server.http_errors import add_error_handler
-    from fastapi import FastAPI
 
     app = FastAPI()
     app.state.console = type("C", (), {"session": session})()
