@@ -28,6 +28,9 @@ is typed. Enter, leaving the box (the browser's own ``change`` event) or an arro
 something typed dispatch one ``change`` event, which React's change handling reads as the
 value's one edit; Escape puts the committed value back. The slider's track is a separate
 control (pointer events): a drag still moves the joint as it goes.
+
+The program list's clicks and keys (select, shift-select, arrows, Delete, undo/redo) are a second
+script, :data:`server.program_keys_js.PROGRAM_KEYS_JS`, run the same way (:func:`with_page_scripts`).
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import zstandard
+
+from server.program_keys_js import PROGRAM_KEYS_JS
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +105,7 @@ NUMBER_COMMIT_JS = """(() => {
   window.addEventListener("focusout", (e) => { if (isBox(e.target)) commit(e.target); }, true);
 })();"""
 _COMMIT_TAG = f'<script data-teleprog="number-commit">{NUMBER_COMMIT_JS}</script>'
+_PROGRAM_KEYS_TAG = f'<script data-teleprog="program-keys">{PROGRAM_KEYS_JS}</script>'
 
 
 class PagePatchError(ValueError):
@@ -218,10 +224,20 @@ def paced_page(html: str, intervals_ms: Mapping[str, int]) -> str:
 
 def with_number_commit(html: str) -> str:
     """``html`` with :data:`NUMBER_COMMIT_JS` run first thing in its head (before viser's script)."""
+    return _in_head(html, _COMMIT_TAG, "the number-commit script")
+
+
+def with_page_scripts(html: str) -> str:
+    """``html`` with the console's scripts run first thing in its head (before viser's):
+    :data:`NUMBER_COMMIT_JS`, then the program list's clicks and keys (``PROGRAM_KEYS_JS``)."""
+    return _in_head(html, _COMMIT_TAG + _PROGRAM_KEYS_TAG, "the console's scripts")
+
+
+def _in_head(html: str, tags: str, what: str) -> str:
     head = re.search(r"<head[^>]*>", html)
     if head is None:
-        raise PagePatchError("the page has no <head> to put the number-commit script in")
-    return html[: head.end()] + _COMMIT_TAG + html[head.end() :]
+        raise PagePatchError(f"the page has no <head> to put {what} in")
+    return html[: head.end()] + tags + html[head.end() :]
 
 
 def served_page(html: str, intervals_ms: Mapping[str, int] | None = None) -> str:
@@ -232,4 +248,4 @@ def served_page(html: str, intervals_ms: Mapping[str, int] | None = None) -> str
             html = paced_page(html, intervals_ms)
         except (PagePatchError, zstandard.ZstdError, UnicodeDecodeError) as exc:
             log.warning("serving viser's page unpaced: drags stay at viser's own 20 updates a second (%s)", exc)
-    return with_number_commit(html)
+    return with_page_scripts(html)

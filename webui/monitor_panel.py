@@ -1,6 +1,9 @@
 """The submit-and-monitor panel (thesis 4.3.6, 4.4): submit a range of the program, then follow
 each sent statement by its robot number and status (received, running, done, failed) with its
 timing. STOP and recovery live in the header (webui.stop_header) so they stay in view on every tab.
+
+The sent list pages: the newest ``SHOWN`` statements first (page 1), Older / Newer reach the rest,
+and the list says which page of how many it shows.
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ STATUS_MARK = {
     SentStatus.UNKNOWN: "**UNKNOWN**",
 }
 
-SHOWN = 14  # the newest sent statements listed; older ones stay in the API
+SHOWN = 14  # sent statements on one page of the list; page 1 holds the newest
 
 
 def sent_line(item: SentView, now: float) -> str:
@@ -48,15 +51,32 @@ def sent_line(item: SentView, now: float) -> str:
     return f"{number} `{item.text}`: {STATUS_MARK[item.status]}{timing}{reason}"
 
 
-def sent_markdown(view: SentListView, now: float | None = None) -> str:
+def page_count(total: int, size: int = SHOWN) -> int:
+    """How many pages ``total`` sent statements fill (at least one)."""
+    return max(1, -(-total // size))
+
+
+def page_slice(total: int, page: int, size: int = SHOWN) -> tuple[int, int, int]:
+    """``(page, start, stop)``: the page clipped to those there are (0 is the newest) and the
+    slice of the sent list it shows, oldest first."""
+    page = min(max(page, 0), page_count(total, size) - 1)
+    stop = total - page * size
+    return page, max(0, stop - size), stop
+
+
+def sent_markdown(view: SentListView, now: float | None = None, page: int = 0) -> str:
+    """One page of the sent list (0: the newest statements)."""
     now = time.time() if now is None else now
     if not view.items:
         return "Nothing sent yet."
-    items = view.items[-SHOWN:]
-    lines = [f"{len(view.items)} sent, {view.pending} pending"]
-    if len(view.items) > SHOWN:
-        lines.append(f"(oldest {len(view.items) - SHOWN} not shown)")
-    lines += [sent_line(item, now) for item in items]
+    total = len(view.items)
+    page, start, stop = page_slice(total, page)
+    lines = [f"{total} sent, {view.pending} pending"]
+    pages = page_count(total)
+    if pages > 1:
+        which = " (newest)" if page == 0 else " (oldest)" if page == pages - 1 else ""
+        lines.append(f"Page {page + 1} of {pages}{which}: sent {start + 1}-{stop} of {total}")
+    lines += [sent_line(item, now) for item in view.items[start:stop]]
     return "  \n".join(lines)
 
 
@@ -66,11 +86,29 @@ class MonitorPanel:
         self.session = session
         self.actions = actions
         gui = server.gui
-        self.range = StatementRange(gui, "Submit from", "Submit to")
+        self.range = StatementRange(
+            gui, "Submit from", "Submit to",
+            first_hint="any statement may be typed; the editor sends a range that starts at statement 1 "
+            "(the robot continues from where it already is) and says on the line why another cannot go",
+        )
         self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
         self.submit.on_click(self._on_submit)
+        self.pages = gui.add_button_group("Sent list", ("Older", "Newer"))
+        self.pages.on_click(self._on_page)
         self.sent = gui.add_markdown("Nothing sent yet.")
         self._view: SentListView | None = None
+        self._page = 0  # 0: the newest statements
+
+    def _on_page(self, event: viser.GuiEvent) -> None:
+        """Older / Newer: which page of the sent list is shown (display only)."""
+        total = len(self._view.items) if self._view is not None else 0
+        step = 1 if event.target.value == "Older" else -1
+        self._page, _, _ = page_slice(total, self._page + step)
+        self._draw()
+
+    def _draw(self) -> None:
+        if self._view is not None:
+            self.sent.content = sent_markdown(self._view, self.session.wall_clock(), self._page)
 
     def _on_submit(self, _event: viser.GuiEvent) -> None:
         start, stop = self.range.slice(release=True)  # the program shrinks: next, all that is left
@@ -81,10 +119,10 @@ class MonitorPanel:
 
     def show(self, view: SentListView) -> None:
         self._view = view
-        self.sent.content = sent_markdown(view, self.session.wall_clock())
+        self._draw()
 
     def tick(self) -> None:
         """Refresh the running times while something is not final (called with link updates)."""
         view = self._view
         if view is not None and view.pending:
-            self.sent.content = sent_markdown(view, self.session.wall_clock())
+            self._draw()

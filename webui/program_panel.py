@@ -2,8 +2,10 @@
 generation on/off, a statement added or edited by hand, delete, undo/redo, save and load.
 
 The panel decides nothing: each control calls the session, whose editor applies the rules; a
-refusal comes back as a sentence naming its rule and is shown in the status bar. The list is a
-markdown block (viser has no table) plus a dropdown to select an entry by mouse or keyboard.
+refusal comes back as a sentence naming its rule, shown in the status bar and under the line it
+concerns. The list is an HTML block (``webui.program_list``; viser has no list widget) whose
+lines the page's script turns into clicks and keys on the program's API (click, shift-click,
+arrows, Delete, Ctrl+Z); a dropdown selects an entry too.
 """
 
 from __future__ import annotations
@@ -14,34 +16,17 @@ import viser
 
 from server.console import ProgramView, Session, StatementView
 from webui.actions import Actions
+from webui.program_list import MARK, program_html
 
 log = logging.getLogger(__name__)
 
-MARK = "▶"
+__all__ = ["MARK", "ProgramPanel", "entry_label"]
 
 
 def entry_label(entry: StatementView) -> str:
     """How an entry reads in the selector: its number (from 1, as the operator counts) and text."""
     text = "(empty)" if entry.kind == "EMPTY" else entry.text
     return f"{entry.index + 1}: {text}"
-
-
-def program_markdown(view: ProgramView) -> str:
-    """The program as a numbered list; the selected entry is marked and bold."""
-    lines = []
-    for entry in view.entries:
-        text = "*(empty statement)*" if entry.kind == "EMPTY" else f"`{entry.text}`"
-        if entry.added_by == "console":
-            text += f" *(added by the console: {entry.added_reason}; delete it to go without)*"
-        # "n:" rather than "n." so markdown does not turn the program into its own numbered list
-        lead = f"{MARK} **{entry.index + 1}:**" if entry.index == view.selected else f"{entry.index + 1}:"
-        lines.append(f"{lead} {text}")
-    start = {"model": "cell home", "predicted": "end of sent statements", "telemetry": "re-synced from robot"}
-    lines.append("")
-    lines.append(f"Starts from: {start.get(view.start_source, view.start_source)}")
-    if view.preview is not None:
-        lines.append(f"Previewing statements {view.preview[0] + 1}-{view.preview[1]}: only selection is allowed")
-    return "  \n".join(lines)
 
 
 class ProgramPanel:
@@ -55,7 +40,7 @@ class ProgramPanel:
         self.auto = gui.add_checkbox("Automatic generation", initial_value=True,
                                      hint="turn driving motion into statements as you drive")
         self.auto.on_update(self._on_auto)
-        self.listing = gui.add_markdown("")
+        self.listing = gui.add_html("")
         self.selector = gui.add_dropdown("Selected", ["1: (empty)"], initial_value="1: (empty)")
         self.selector.on_update(self._on_select)
         self.new_text = gui.add_text("New statement", "", hint="e.g. DRAW TO (0, -80, 160) mm IN WORK")
@@ -93,7 +78,7 @@ class ProgramPanel:
             return
         self.actions.run("select", lambda: self.session.program.select(index))
 
-    def _on_edit(self, event: viser.GuiEvent) -> None:
+    def _on_edit(self, event: viser.GuiEvent) -> None:  # Delete: the selected range
         choice = event.target.value
         if choice == "Replace":
             text = self.edit_text.value
@@ -124,7 +109,7 @@ class ProgramPanel:
     # -- session events -----------------------------------------------------------------------
     def show(self, view: ProgramView) -> None:
         self._view = view
-        self.listing.content = program_markdown(view)
+        self.listing.content = program_html(view)
         options = [entry_label(e) for e in view.entries]
         selected = options[view.selected]
         entry = view.entries[view.selected]

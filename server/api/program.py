@@ -1,5 +1,7 @@
-"""The programming panel (§4.3.6): select, insert, delete, modify, conditions, undo/redo,
-automatic generation, load and save program files."""
+"""The programming panel (§4.3.6): select (one entry, a range, a move of the cursor), insert,
+delete (the selection or a range), modify, conditions, undo/redo, automatic generation, load and
+save program files. The page's program list calls these from clicks and keys
+(``server/program_keys_js.py``)."""
 
 from __future__ import annotations
 
@@ -21,6 +23,17 @@ router = APIRouter(prefix="/api/program", tags=["program"])
 
 class SelectIn(ApiIn):
     index: int = Field(ge=-MAX_COUNT, le=MAX_COUNT, description="0-based; the trailing empty statement is entries[-1]")
+    extend: bool = Field(False, description="select the range from the anchor to index (a shift-click)")
+
+
+class RangeIn(ApiIn):
+    first: int = Field(ge=-MAX_COUNT, le=MAX_COUNT, description="0-based first entry")
+    last: int = Field(ge=-MAX_COUNT, le=MAX_COUNT, description="0-based last entry, included")
+
+
+class MoveIn(ApiIn):
+    by: Literal[-1, 1] = Field(description="1: the next entry (down), -1: the previous one (up)")
+    extend: bool = Field(False, description="keep the anchor: extend the range (shift+arrow)")
 
 
 class StatementIn(ApiIn):
@@ -62,7 +75,19 @@ def get_program(session: SessionDep) -> ProgramView:
 
 @router.post("/select", response_model=ProgramView)
 def select(body: SelectIn, session: SessionDep, client: ClientDep) -> ProgramView:
-    return session.program.select(body.index, client=client)
+    return session.program.select(body.index, extend=body.extend, client=client)
+
+
+@router.post("/select-range", response_model=ProgramView)
+def select_range(body: RangeIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Select entries first..last (both included)."""
+    return session.program.select_range(body.first, body.last, client=client)
+
+
+@router.post("/move", response_model=ProgramView)
+def move(body: MoveIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Move the selection one entry up or down (arrow keys); ``extend`` keeps its anchor."""
+    return session.program.move_selection(body.by, extend=body.extend, client=client)
 
 
 @router.post("/insert", response_model=ProgramView)
@@ -73,7 +98,14 @@ def insert(body: StatementIn, session: SessionDep, client: ClientDep) -> Program
 
 @router.post("/delete", response_model=ProgramView)
 def delete(session: SessionDep, client: ClientDep) -> ProgramView:
+    """Delete the selected range (one undo step); 409 names the rule (GET /api/program: `refusal`, with its statement)."""
     return session.program.delete(client=client)
+
+
+@router.post("/delete-range", response_model=ProgramView)
+def delete_range(body: RangeIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Delete entries first..last (both included; the trailing empty statement stays)."""
+    return session.program.delete(body.first, body.last, client=client)
 
 
 @router.post("/modify", response_model=ProgramView)

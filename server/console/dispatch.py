@@ -176,7 +176,15 @@ class Dispatch:
 
     # -- submitting ------------------------------------------------------------------------------
     def submit(self, start: int, stop: int, *, client: Caller | str | None = None) -> SentListView:
-        """Send ``statements[start:stop]`` (``start`` must be 0) to the robot, under the regime."""
+        """Send ``statements[start:stop]`` (``start`` must be 0) to the robot, under the regime.
+        A refusal by a rule is also shown on the line it concerns (``ProgramView.refusal``)."""
+        try:
+            return self._submit(start, stop, client=client)
+        except RefusedByRule as exc:
+            self._desk.show_refusal(exc.refusal)
+            raise
+
+    def _submit(self, start: int, stop: int, *, client: Caller | str | None = None) -> SentListView:
         try:
             with self._ctx.lock:
                 self._control.check(client)

@@ -10,6 +10,10 @@ from the operator's strokes, program files, and where the program starts.
   inserted as ordinary, undoable edits and marked in the view (``added_by="console"`` with the
   reason) until they are sent; the operator may delete them like any line. One the operator took
   out is remembered as declined, so the console does not put it back for the same need.
+* Selection is a range (click, shift-click, arrows in the page); a refused edit is kept in the
+  view (``ProgramView.refusal``, with the statement it concerns) until the next edit or
+  selection, so the page shows it on its line. Each statement's planned duration is in the view,
+  planned from the start once per change of the program or its start.
 * The start: the program plans from ``start_q`` (the model's home, where the statements sent are
   predicted to end, or the robot's reported state after a re-sync); ``start_unknown`` says a
   prediction could not be made (a task, a stop or a failure came first).
@@ -32,11 +36,18 @@ from server.console.enums import Regime
 from server.console.errors import ConflictError, ConsoleLineAdded, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
-from server.console.views import Caller, ProgramView, StatementView, VirtualState
+from server.console.views import (
+    Caller,
+    ProgramView,
+    RefusalView,
+    StatementView,
+    VirtualState,
+)
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
-from shared.language.statements import Speed, Statement, Until, program_to_json
+from shared.language.statements import Speed, Statement, Until, is_task, program_to_json
+from shared.motion.plan_check import plan_or_refuse
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import JogMode, ProgramGenerator, RobotSample
 
@@ -95,6 +106,8 @@ class ProgramDesk:
         self._confirmed: tuple[int, int, tuple] | None = None
         self._console_lines: list[ConsoleLine] = []  # added by the console, not sent yet
         self._declined: list[ConsoleLine] = []  # console lines the operator took out
+        self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
+        self._durations: tuple[tuple, list[float | None]] | None = None  # (key, durations)
 
     # -- reading -----------------------------------------------------------------------------
     @property
@@ -105,16 +118,41 @@ class ProgramDesk:
     def view(self) -> ProgramView:
         with self._ctx.lock:
             st = self._editor.state
-            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s,
-                                     **self._added_fields(s)) for i, s in enumerate(st.statements)]
+            durations = self.durations()
+            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s, duration_s=d,
+                                     **self._added_fields(s))
+                       for (i, s), d in zip(enumerate(st.statements), durations, strict=True)]
             entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
             e = self._editor
             return ProgramView(
-                entries=entries, selected=st.selected_index, empty_index=st.empty_index, preview=st.preview,
+                entries=entries, selected=st.selected_index, selected_range=st.selected_range, refusal=self._shown_refusal(),
+                empty_index=st.empty_index, preview=st.preview,
                 can_undo=e.can_undo, can_redo=e.can_redo, undo_label=e.undo_label, redo_label=e.redo_label,
                 auto_generate=self._auto, start_q=self.start.q.tolist(), start_source=self.start.source,
                 confirmed=self.confirmed_range(),
             )
+
+    def durations(self) -> list[float | None]:
+        """Each real statement's planned duration (s) from the program's start; ``None`` where
+        it is not known: a task (only the robot knows how long), a statement at or after a
+        planning refusal, or every statement when the start is unknown. Planned once per change."""
+        with self._ctx.lock:
+            statements = tuple(self._editor.state.statements)
+            start = self.start
+            key = (statements, start.q.tobytes(), start.unknown)
+            if self._durations is not None and self._durations[0] == key:
+                return self._durations[1]
+            durations: list[float | None] = [None] * len(statements)
+            if statements and not start.unknown:
+                try:
+                    plan = plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start.q)
+                except TeleprogError as exc:
+                    log.info("no durations: the program cannot be planned (%s)", exc)
+                else:
+                    for i, segment in enumerate(plan.segments):
+                        durations[i] = None if is_task(statements[i]) else float(segment.duration)
+            self._durations = (key, durations)
+            return durations
 
     def confirmed_range(self) -> tuple[int, int] | None:
         """The range previewed to its end without warnings, while its statements are unchanged."""
@@ -146,9 +184,20 @@ class ProgramDesk:
         self._ctx.bus.emit([ProgramChanged(program=view)])
         return view
 
-    def select(self, index: int, *, client: Caller | str | None = None) -> ProgramView:
-        """Select statement ``index`` (0-based; ``empty_index`` is the trailing empty one). Allowed while previewing."""
-        return self._edit(lambda e: e.select(index), client)
+    def select(self, index: int, *, extend: bool = False, client: Caller | str | None = None) -> ProgramView:
+        """Select statement ``index`` (0-based; ``empty_index`` is the trailing empty one). Allowed while previewing.
+        ``extend``: select the range from the anchor (or the current selection) to ``index`` (a shift-click)."""
+        return self._edit(lambda e: e.select(index, extend=extend), client)
+
+    def select_range(self, first: int, last: int, *, client: Caller | str | None = None) -> ProgramView:
+        """Select entries ``first..last`` (0-based, both included)."""
+        return self._edit(lambda e: e.select_range(first, last), client)
+
+    def move_selection(self, by: int, *, extend: bool = False, client: Caller | str | None = None) -> ProgramView:
+        """Move the cursor one entry down (``by=1``) or up (``-1``); ``extend`` keeps the anchor (shift+arrow)."""
+        if by not in (-1, 1):
+            raise InputError(f"the selection moves by 1 or -1, not {by}")
+        return self._edit(lambda e: e.select_next(extend=extend) if by > 0 else e.select_previous(extend=extend), client)
 
     def insert(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
         """Insert a statement (a model, or its text form) before the selection."""
@@ -156,9 +205,9 @@ class ProgramDesk:
         st = self._statement(statement)
         return self._edit(lambda e: e.insert(st), client)
 
-    def delete(self, *, client: Caller | str | None = None) -> ProgramView:
-        """Delete the selected statement."""
-        return self._edit(lambda e: e.delete(), client)
+    def delete(self, first: int | None = None, last: int | None = None, *, client: Caller | str | None = None) -> ProgramView:
+        """Delete the selected range, or entries ``first..last`` (0-based, both included): one undo step."""
+        return self._edit(lambda e: e.delete(first, last), client)
 
     def modify(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
         """Replace the selected statement by one of the same kind (§4.3.6 rules)."""
@@ -200,6 +249,7 @@ class ProgramDesk:
             self._confirmed = None
             self._console_lines.clear()
             self._declined.clear()
+            self._refusal = None
         view = self.view()
         self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
         return view
@@ -228,21 +278,39 @@ class ProgramDesk:
     def _edit(self, op: Callable[[Editor], object], client: Caller | str | None) -> ProgramView:
         with self._ctx.lock:
             self._control.check(client)
-            before = self._editor
+            before, shown = self._editor, self._refusal
             trial = _copy_editor(before)
             try:
                 result = op(trial)
                 refusal = result if isinstance(result, Refusal) else None
                 self._editor = trial
+                self._refusal = None if refusal is None else self._refusal_view(refusal)
                 view = self.view()
             except Exception:
-                self._editor = before
+                self._editor, self._refusal = before, shown
                 raise
         if refusal is not None:
-            self._ctx.bus.emit([Notice(level="warning", message=refusal.message, rule=refusal.rule.value)])
+            self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="warning", message=refusal.message, rule=refusal.rule.value)])
             raise RefusedByRule(refusal)
         self._ctx.bus.emit([ProgramChanged(program=view)])
         return view
+
+    def _refusal_view(self, refusal: Refusal) -> tuple[RefusalView, tuple]:
+        view = RefusalView(rule=refusal.rule.value, message=refusal.message, index=refusal.index)
+        return view, tuple(self._editor.state.statements)
+
+    def _shown_refusal(self) -> RefusalView | None:
+        """The last refusal, while the program it was made on is unchanged (under the lock)."""
+        if self._refusal is None:
+            return None
+        view, statements = self._refusal
+        return view if statements == tuple(self._editor.state.statements) else None
+
+    def show_refusal(self, refusal: Refusal) -> None:
+        """Keep a refusal made elsewhere (a submission's) in the view, on its line, and show it."""
+        with self._ctx.lock:
+            self._refusal = self._refusal_view(refusal)
+        self._ctx.bus.emit([ProgramChanged(program=self.view())])
 
     # -- the editor, for the other parts (under the lock) ----------------------------------------
     @property

@@ -87,6 +87,7 @@ class ArmView(_View):
 class RefusalView(_View):
     rule: str = Field(description="stable rule id, e.g. 'insert.action-at-end'")
     message: str
+    index: int | None = Field(None, description="0-based entry the rule concerns (shown on that line), if any")
 
 
 class StatementView(_View):
@@ -98,13 +99,23 @@ class StatementView(_View):
         None, description="'console' for a line the console put in (a MODE the regime needs); None: the operator's"
     )
     added_reason: str | None = Field(None, description="why the console added the line (it can be deleted like any other)")
+    duration_s: float | None = Field(
+        None, description="planned duration from the program's start, s; None: not planned (empty, a task, "
+        "after a planning refusal, or the start is unknown)"
+    )
 
 
 class ProgramView(_View):
     """The program being edited (§4.3.6) and the generator's switch."""
 
     entries: list[StatementView] = Field(description="real statements then the trailing empty one")
-    selected: int
+    selected: int = Field(description="the cursor: where insert and modify act (one end of selected_range)")
+    selected_range: tuple[int, int] | None = Field(
+        None, description="selected entries (first, last), both included; first == last for one"
+    )
+    refusal: RefusalView | None = Field(
+        None, description="the last refused edit, until the next edit or selection; shown on its line"
+    )
     empty_index: int
     preview: tuple[int, int] | None = Field(None, description="range being previewed (start, stop)")
     can_undo: bool

@@ -20,6 +20,13 @@ deleted, or have its own parameters changed, only when no statement at all (not 
 stands between it and the empty statement. This is what keeps continuity without the editor
 knowing any robot state, and it matches where actions and task calls may be inserted.
 
+Selection is a range: ``selected`` is the cursor (where insert and modify act, as in §4.3.6) and
+``anchor``, when set, the other end of a range (a shift-click or shift-arrow in the page). A range
+delete generalises the single rule: the range may hold actions only when nothing but the empty
+statement follows it, so what is left keeps action continuity; a range of parameter statements
+(and task calls) may go anywhere. A range delete is one edit, one undo step. Every refusal names
+the statement it concerns (``Refusal.index``) where it has one, so the page shows it on its line.
+
 The order in which an operation's rules are tested (and so which rule a refusal names when
 several apply) is: preview lock, then what the selected statement is, then what the new
 statement is, then where it is.
@@ -126,6 +133,8 @@ class ProgramState:
     statements: tuple[Statement, ...] = ()
     selected: int | None = None
     preview: tuple[int, int] | None = None
+    anchor: int | None = None
+    """The other end of a selected range (``None``: only ``selected`` is selected)."""
 
     def __post_init__(self) -> None:
         statements = tuple(self.statements)
@@ -142,6 +151,10 @@ class ProgramState:
             object.__setattr__(self, "selected", len(statements))
         elif not 0 <= self.selected <= len(statements):
             raise InputError(f"selection {self.selected} is outside the program (0..{len(statements)})")
+        if self.anchor is not None and not 0 <= self.anchor <= len(statements):
+            raise InputError(f"selection anchor {self.anchor} is outside the program (0..{len(statements)})")
+        if self.anchor == self.selected:
+            object.__setattr__(self, "anchor", None)
         if self.preview is not None:
             start, stop = self.preview
             if not 0 <= start < stop <= len(statements):
@@ -170,6 +183,13 @@ class ProgramState:
         return self.selected
 
     @property
+    def selected_range(self) -> tuple[int, int]:
+        """The selected entries ``(first, last)``, both included (one entry: ``first == last``)."""
+        if self.anchor is None:
+            return self.selected_index, self.selected_index
+        return min(self.anchor, self.selected_index), max(self.anchor, self.selected_index)
+
+    @property
     def selected_statement(self) -> Statement | EmptyStatement:
         return self.entries[self.selected_index]
 
@@ -193,25 +213,29 @@ class ProgramState:
 
     # ---------------------------------------------------------------- selection
 
-    def select(self, index: int) -> ProgramState | Refusal:
-        """Select the statement at ``index`` (the empty statement is ``len(statements)``)."""
-        if not 0 <= index <= self.empty_index:
-            return Refusal(
-                Rule.SELECT_RANGE,
-                f"index {index} is outside the program: entries are 0..{self.empty_index} "
-                "(the last is the empty statement)",
-            )
-        return self._with(selected=index)
+    def select(self, index: int, *, extend: bool = False) -> ProgramState | Refusal:
+        """Select the statement at ``index`` (the empty statement is ``len(statements)``);
+        ``extend``: the range from the current anchor (or the current selection) to ``index``."""
+        if (outside := self._outside(index)) is not None:
+            return outside
+        return self._with(selected=index, anchor=self._anchor_for(extend))
 
-    def select_next(self) -> ProgramState | Refusal:
+    def select_range(self, first: int, last: int) -> ProgramState | Refusal:
+        """Select entries ``first..last`` (both included); the cursor goes to ``last``."""
+        for index in (first, last):
+            if (outside := self._outside(index)) is not None:
+                return outside
+        return self._with(selected=last, anchor=first)
+
+    def select_next(self, *, extend: bool = False) -> ProgramState | Refusal:
         if self.selected_index == self.empty_index:
             return Refusal(Rule.SELECT_RANGE, "the trailing empty statement is selected; nothing follows it")
-        return self._with(selected=self.selected_index + 1)
+        return self._with(selected=self.selected_index + 1, anchor=self._anchor_for(extend))
 
-    def select_previous(self) -> ProgramState | Refusal:
+    def select_previous(self, *, extend: bool = False) -> ProgramState | Refusal:
         if self.selected_index == 0:
             return Refusal(Rule.SELECT_RANGE, "the first statement is selected; nothing precedes it")
-        return self._with(selected=self.selected_index - 1)
+        return self._with(selected=self.selected_index - 1, anchor=self._anchor_for(extend))
 
     def select_first(self) -> ProgramState:
         return self._with(selected=0)
@@ -227,45 +251,72 @@ class ProgramState:
         if (locked := self._locked("insert a statement")) is not None:
             return locked
         if not _is_real(statement):
-            return Refusal(Rule.INSERT_REAL, f"only a real statement can be inserted, not {_describe(statement)}")
+            return Refusal(
+                Rule.INSERT_REAL, f"only a real statement can be inserted, not {_describe(statement)}", self.selected_index
+            )
         at_end = self.selected_index == self.empty_index
         if is_action(statement) and not at_end:
             return Refusal(
                 Rule.INSERT_ACTION_AT_END,
                 f"a {statement.kind} action can only be inserted before the trailing empty statement "
                 f"(statement {self.selected_index + 1} is selected); inserting it here would break action continuity",
+                self.selected_index,
             )
         if is_task(statement) and not at_end:
             return Refusal(
                 Rule.INSERT_TASK_AT_END,
                 f"a task call can only be inserted before the trailing empty statement "
                 f"(statement {self.selected_index + 1} is selected)",
+                self.selected_index,
             )
         if at_end and not may_follow(statement, unknown := self.unknown_pose):
-            return Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown))
+            return Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown), self.empty_index - 1)
         return None
 
-    def check_delete(self) -> Refusal | None:
-        """Why the selected statement cannot be deleted, or ``None`` if it can."""
+    def check_delete(self, first: int | None = None, last: int | None = None) -> Refusal | None:
+        """Why entries ``first..last`` (both included; default: the selected range) cannot be
+        deleted, or ``None`` if they can. The trailing empty statement in the range stays."""
         if (locked := self._locked("delete a statement")) is not None:
             return locked
-        index = self.selected_index
-        if index == self.empty_index:
-            return Refusal(Rule.DELETE_EMPTY, "the trailing empty statement cannot be deleted")
-        statement = self.statements[index]
-        if is_action(statement) and index != self.empty_index - 1:
-            return Refusal(
-                Rule.DELETE_ACTION_NOT_LAST,
-                f"the {statement.kind} action (statement {index + 1}) is not just before the trailing empty statement; "
-                "deleting it would break action continuity",
+        if first is None or last is None:
+            first, last = self.selected_range
+        if first > last:
+            first, last = last, first
+        for index in (first, last):
+            if (outside := self._outside(index)) is not None:
+                return outside
+        if first == self.empty_index:
+            return Refusal(Rule.DELETE_EMPTY, "the trailing empty statement cannot be deleted", first)
+        stop = min(last, self.empty_index - 1)  # the last real statement deleted
+        if stop == self.empty_index - 1:
+            return None  # nothing but the empty statement follows: continuity is kept
+        motion_after = any(moves_arm(s) for s in self.statements[stop + 1 :])
+        for index in range(first, stop + 1):
+            st = self.statements[index]
+            if is_task(st) and moves_arm(st) and motion_after:
+                return Refusal(
+                    Rule.DELETE_ACTION_NOT_LAST,
+                    f"TASK {st.name} (statement {index + 1}) moves the arm and a motion follows it; "
+                    "deleting it would break action continuity (delete the motions after it first)",
+                    index,
+                )
+        actions = [i for i in range(first, stop + 1) if is_action(self.statements[i])]
+        if not actions:
+            return None  # parameter statements and tasks that keep the arm still may go anywhere
+        index = actions[0]
+        kind = self.statements[index].kind
+        if first == stop:
+            message = (
+                f"the {kind} action (statement {index + 1}) is not just before the trailing empty statement; "
+                "deleting it would break action continuity"
             )
-        if is_task(statement) and moves_arm(statement) and any(moves_arm(s) for s in self.statements[index + 1 :]):
-            return Refusal(
-                Rule.DELETE_ACTION_NOT_LAST,
-                f"TASK {statement.name} (statement {index + 1}) moves the arm and a motion follows it; "
-                "deleting it would break action continuity (delete the motions after it first)",
+        else:
+            message = (
+                f"statements {first + 1}..{stop + 1} hold the {kind} action (statement {index + 1}) and statement "
+                f"{stop + 2} follows them; deleting actions with statements after them would break action continuity "
+                "(delete a range that reaches the end, or parameter statements only)"
             )
-        return None
+        return Refusal(Rule.DELETE_ACTION_NOT_LAST, message, index)
 
     def check_modify(self, statement: object) -> Refusal | None:
         """Why the selected statement cannot be replaced by ``statement``, or ``None`` if it can."""
@@ -273,15 +324,16 @@ class ProgramState:
             return locked
         index = self.selected_index
         if index == self.empty_index:
-            return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified; insert instead")
+            return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified; insert instead", index)
         old = self.statements[index]
         if is_task(old):
-            return Refusal(Rule.MODIFY_TASK, f"the task call {old.name!r} cannot be modified; delete it instead")
+            return Refusal(Rule.MODIFY_TASK, f"the task call {old.name!r} cannot be modified; delete it instead", index)
         if not _is_real(statement) or statement.kind != old.kind:
             return Refusal(
                 Rule.MODIFY_KIND,
                 f"a modification keeps the statement's kind: statement {index + 1} is {old.kind}, "
                 f"not {_describe(statement)}",
+                index,
             )
         if is_action(old) and index != self.empty_index - 1 and _action_body(statement) != _action_body(old):
             return Refusal(
@@ -289,6 +341,7 @@ class ProgramState:
                 f"only the WITH and UNTIL conditions of the {old.kind} action (statement {index + 1}) can change; "
                 "its own parameters can change only when it is just before the trailing empty statement "
                 "(action continuity)",
+                index,
             )
         return None
 
@@ -301,12 +354,15 @@ class ProgramState:
                 Rule.SUBMIT_RANGE,
                 f"cannot submit {start}..{stop}: a submission is a non-empty range within the "
                 f"{self.empty_index} real statement(s)",
+                start if 0 <= start <= self.empty_index else None,
             )
         if start != 0:
             return Refusal(
                 Rule.SUBMIT_PREFIX,
-                f"cannot submit from statement {start + 1}: submission starts at the first statement so that "
-                "the robot continues from where it already is",
+                f"cannot submit from statement {start + 1}: it starts where statement {start} ends, and the robot "
+                f"has not been sent statements 1..{start} yet; a submission starts at statement 1 so that the robot "
+                f"continues from where it already is (submit 1..{stop} instead)",
+                start,
             )
         return None
 
@@ -322,12 +378,17 @@ class ProgramState:
             selected=index + 1,
         )
 
-    def delete(self) -> ProgramState | Refusal:
-        """Delete the selected statement; the selection moves to the statement after it."""
-        if (refusal := self.check_delete()) is not None:
+    def delete(self, first: int | None = None, last: int | None = None) -> ProgramState | Refusal:
+        """Delete entries ``first..last`` (default: the selected range; the trailing empty
+        statement stays); the selection moves to the statement after the deleted range."""
+        if first is None or last is None:
+            first, last = self.selected_range
+        if first > last:
+            first, last = last, first
+        if (refusal := self.check_delete(first, last)) is not None:
             return refusal
-        index = self.selected_index
-        return self._with(statements=self.statements[:index] + self.statements[index + 1 :], selected=index)
+        stop = min(last, self.empty_index - 1) + 1
+        return self._with(statements=self.statements[:first] + self.statements[stop:], selected=first)
 
     def modify(self, statement: Statement) -> ProgramState | Refusal:
         """Replace the selected statement by ``statement`` (same kind); the selection is kept."""
@@ -348,10 +409,11 @@ class ProgramState:
         old = self.selected_statement
         if not is_action(old):
             if old is EMPTY:
-                return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified")
+                return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified", self.selected_index)
             return Refusal(
                 Rule.MODIFY_CONDITIONS_NOT_ACTION,
                 f"WITH and UNTIL belong to action statements; statement {self.selected_index + 1} is {old.kind}",
+                self.selected_index,
             )
         fields = dict(old)
         if speed is not KEEP:
@@ -404,8 +466,27 @@ class ProgramState:
             f"cannot {what} while statements {start + 1}..{stop} are being previewed; only selection is allowed",
         )
 
+    def _outside(self, index: int) -> Refusal | None:
+        if 0 <= index <= self.empty_index:
+            return None
+        return Refusal(
+            Rule.SELECT_RANGE,
+            f"index {index} is outside the program: entries are 0..{self.empty_index} "
+            "(the last is the empty statement)",
+        )
+
+    def _anchor_for(self, extend: bool) -> int | None:
+        """The anchor of a selection move: kept (or set at the cursor) when extending, else none."""
+        if not extend:
+            return None
+        return self.anchor if self.anchor is not None else self.selected_index
+
     def _with(self, **changes: object) -> ProgramState:
-        values = {"statements": self.statements, "selected": self.selected, "preview": self.preview}
+        """A copy with ``changes``; a change of the statements or of the cursor drops the range
+        unless the change names its anchor."""
+        values = {"statements": self.statements, "selected": self.selected, "preview": self.preview, "anchor": self.anchor}
+        if ("statements" in changes or "selected" in changes) and "anchor" not in changes:
+            values["anchor"] = None
         values.update(changes)
         return ProgramState(**values)  # type: ignore[arg-type]
 
@@ -447,8 +528,17 @@ class Editor:
     def insert(self, statement: Statement) -> ProgramState | Refusal:
         return self._edit(f"insert {_describe(statement)}", self.state.insert(statement))
 
-    def delete(self) -> ProgramState | Refusal:
-        return self._edit(f"delete {_describe(self.state.selected_statement)}", self.state.delete())
+    def delete(self, first: int | None = None, last: int | None = None) -> ProgramState | Refusal:
+        """Delete the selected range (or ``first..last``): one edit, one undo step."""
+        if first is None or last is None:
+            first, last = self.state.selected_range
+        result = self.state.delete(first, last)
+        if isinstance(result, Refusal):
+            return self._refused(result)
+        lo = min(first, last)
+        count = len(self.state.statements) - len(result.statements)
+        label = f"delete {_describe(self.state.entries[lo])}" if count == 1 else f"delete statements {lo + 1}..{lo + count}"
+        return self._edit(label, result)
 
     def modify(self, statement: Statement) -> ProgramState | Refusal:
         return self._edit(f"modify {_describe(statement)}", self.state.modify(statement))
@@ -475,14 +565,17 @@ class Editor:
 
     # ------------------------------------------------------------ not recorded
 
-    def select(self, index: int) -> ProgramState | Refusal:
-        return self._move(self.state.select(index))
+    def select(self, index: int, *, extend: bool = False) -> ProgramState | Refusal:
+        return self._move(self.state.select(index, extend=extend))
 
-    def select_next(self) -> ProgramState | Refusal:
-        return self._move(self.state.select_next())
+    def select_range(self, first: int, last: int) -> ProgramState | Refusal:
+        return self._move(self.state.select_range(first, last))
 
-    def select_previous(self) -> ProgramState | Refusal:
-        return self._move(self.state.select_previous())
+    def select_next(self, *, extend: bool = False) -> ProgramState | Refusal:
+        return self._move(self.state.select_next(extend=extend))
+
+    def select_previous(self, *, extend: bool = False) -> ProgramState | Refusal:
+        return self._move(self.state.select_previous(extend=extend))
 
     def select_first(self) -> ProgramState:
         self._state = self.state.select_first()

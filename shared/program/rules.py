@@ -102,6 +102,9 @@ class Refusal:
 
     rule: Rule
     message: str
+    index: int | None = None
+    """The statement the rule concerns (0-based, as in the program's entries), where it has one:
+    the page shows the refusal under that line."""
 
     def __str__(self) -> str:
         return f"refused by rule {self.rule.value}: {self.message}"

@@ -24,6 +24,7 @@ from server.viser_page import (
     served_page,
     unpack,
     with_number_commit,
+    with_page_scripts,
 )
 
 
@@ -108,9 +109,9 @@ def test_bad_intervals_and_foreign_pages_are_refused(viser_html: str, caplog) ->
     with pytest.raises(PagePatchError, match="one gizmo sender in the page's script, found 0"):
         paced_page(no_gizmo, {"gizmo": 10})
     with caplog.at_level(logging.WARNING, logger="server.viser_page"):
-        assert served_page(no_gizmo, {"gizmo": 10}) == with_number_commit(no_gizmo)
+        assert served_page(no_gizmo, {"gizmo": 10}) == with_page_scripts(no_gizmo)
     assert "viser's own 20 updates a second" in caplog.text
-    assert served_page(viser_html, {}) == with_number_commit(viser_html)
+    assert served_page(viser_html, {}) == with_page_scripts(viser_html)
     with pytest.raises(PagePatchError, match="data-p"):
         unpack("<html></html>")
 
@@ -119,6 +120,7 @@ def test_served_page_runs_the_number_commit_script_before_viser(viser_html: str)
     served = served_page(viser_html, {"gizmo": 10})
     gate, loader = served.index('data-teleprog="number-commit"'), served.index('data-p="')
     assert gate < loader  # its listeners are on window before React's root listens
+    assert gate < served.index('data-teleprog="program-keys"') < loader
     assert read_send_intervals_ms(served) == {"gizmo": 10}
     with pytest.raises(PagePatchError, match="<head>"):
         with_number_commit("<html><body></body></html>")
