@@ -189,6 +189,45 @@ class Dispatch:
             return [SetMode(mode=Mode.POSITION)]
         return []
 
+    # -- what submit would say, without sending (server.console.readiness reads these) ----------
+    def confirmed_through(self, stop: int) -> bool:
+        """The quasi regime's predicate: statements 1..``stop`` were previewed to their end
+        without warnings and are unchanged since."""
+        with self._ctx.lock:
+            c = self._desk.confirmed_range()
+            return c is not None and c[0] == 0 and c[1] >= stop
+
+    def previous_final(self) -> bool:
+        """The operation regime's predicate: every statement sent has its final status."""
+        with self._ctx.lock:
+            return all(s.final for s in self.sent)
+
+    def refusal(self, start: int, stop: int, *, regime: bool = True) -> str | None:
+        """The sentence ``submit(start, stop)`` would refuse with now, or None: its own checks in
+        its order (a robot, no preview running, the editor's range rule, ``_regime_prefix``, each
+        statement's check), nothing sent and nothing changed. ``regime=False`` leaves the
+        regime's rule out (what "Preview and submit" checks before it previews). The control
+        lock is not asked: this is what the rules say, whoever asks."""
+        with self._ctx.lock:
+            try:
+                self.need_robot()
+                self._desk.check_not_previewing("submit statements")
+                editor = self._desk.editor
+                check = editor.state.check_submit(start, stop)
+                if check is not None:
+                    return check.message
+                statements = list(editor.state.statements[start:stop])
+                if regime:
+                    self._regime_prefix(statements, start, stop)
+                for i, st in enumerate(statements):
+                    try:
+                        checked_statement(st)
+                    except TeleprogError as exc:
+                        return f"statement {start + i + 1}: {exc}"
+            except TeleprogError as exc:
+                return exc.refusal.message if isinstance(exc, RefusedByRule) else str(exc)
+        return None
+
     def open_communication(self, outgoing: list[Statement]) -> int:
         """Number a new communication and list its statements as sending (under the lock)."""
         self._comms += 1
