@@ -19,6 +19,7 @@ from server.console import (
 )
 from webui.actions import Actions
 from webui.statement_range import StatementRange
+from webui.submit_needs import SubmitNeeds
 
 STATUS_MARK = {
     SentStatus.SENDING: "sending",
@@ -67,8 +68,10 @@ class MonitorPanel:
         self.actions = actions
         gui = server.gui
         self.range = StatementRange(gui, "Submit from", "Submit to")
+        self.needs = SubmitNeeds(gui, session, actions, self.range)  # what Submit needs, before the click
         self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
         self.submit.on_click(self._on_submit)
+        self.needs.add_button(gui)
         self.sent = gui.add_markdown("Nothing sent yet.")
         self._view: SentListView | None = None
 
@@ -78,6 +81,7 @@ class MonitorPanel:
 
     def show_program(self, view: ProgramView) -> None:
         self.range.follow(view)
+        self.needs.refresh()
 
     def show(self, view: SentListView) -> None:
         self._view = view

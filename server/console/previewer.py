@@ -205,6 +205,7 @@ class Previewer:
     def set_speed(self, speed: Speed, *, client: Caller | str | None = None) -> PreviewView:
         """The preview speed for Play and "Preview and submit": a factor in (0, 100] or
         "instant"; a preview playing now goes on at the new speed."""
+        self._control.check(client)  # the lock answers before the value is looked at
         speed = checked_speed(speed)
         with self._ctx.lock:
             self._control.check(client)
