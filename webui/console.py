@@ -37,6 +37,7 @@ from server.console import (
     PreviewChanged,
     PreviewView,
     ProgramChanged,
+    ReadinessChanged,
     RegimeChanged,
     RemoteArmChanged,
     RemoteArmView,
@@ -52,9 +53,11 @@ from webui.overlays import CollisionOverlay, PredictedPath
 from webui.panels import DrivePanel
 from webui.preview_panel import PreviewPanel
 from webui.program_panel import ProgramPanel
+from webui.regime_banner import RegimeBanner
 from webui.scene import CellScene
 from webui.status_bar import StatusBar
 from webui.stop_header import StopHeader
+from webui.stream_indicator import StreamIndicator
 from webui.terrain_overlay import TerrainOverlay
 from webui.terrain_panel import TerrainPanel
 
@@ -83,6 +86,8 @@ class Console:
     terrain: TerrainPanel | None = None
     terrain_overlay: TerrainOverlay | None = None
     stop: StopHeader | None = None
+    banner: RegimeBanner | None = None
+    stream: StreamIndicator | None = None
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
@@ -112,14 +117,19 @@ class Console:
             self.program.show(event.program)
             self.preview.show_program(event.program)
             self.monitor.show_program(event.program)
+            if self.banner is not None:
+                self.banner.show_auto_generate(event.program.auto_generate)
         elif isinstance(event, PreviewChanged):
             self._preview = event.preview
             self.preview.show(event.preview)
+            self.monitor.needs.show_preview(event.preview)
             self._draw_arm()
             self._draw_collision()
             self._draw_terrain()
         elif isinstance(event, SentChanged):
             self.monitor.show(event.sent)
+            if self.stream is not None:
+                self.stream.show_sent(event.sent)
         elif isinstance(event, LinkChanged):
             self.status.show_link(event.link)
             if self.stop is not None:
@@ -136,6 +146,14 @@ class Console:
             self.path.show(pts if len(pts) else None)
         elif isinstance(event, RegimeChanged):
             self.status.show_regime(event.regime)
+            if self.banner is not None:
+                self.banner.show_regime(event.regime)
+        elif isinstance(event, ReadinessChanged):
+            self.monitor.needs.show(event.readiness)
+            if self.banner is not None:
+                self.banner.show_streaming(event.readiness.streams)
+            if self.stream is not None:
+                self.stream.show_readiness(event.readiness)
         elif isinstance(event, DisplayModeChanged):
             self._mode = event.display
             self.status.show_mode(event.display)
@@ -230,10 +248,13 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
     header = server.gui.add_panel()
     with header.add_tab("Robot", viser.Icon.ROBOT):
         stop = StopHeader(server, session, actions)
+        banner = RegimeBanner(server, robot=session.dispatch.connected)  # the regime, in colour, under STOP
         status = holder["status"] = StatusBar(server, session, actions)
     tabs = server.gui.add_tab_group()
     with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
         drive = DrivePanel(server, session, scene, actions)
+        stream = StreamIndicator(server.gui)  # while a drag runs on the robot, it says so here
+        stream.watch(drive.gizmo)
         if LocatePanel.wanted(session):
             LocatePanel(server, session, actions)
     with tabs.add_tab("Program", viser.Icon.LIST_NUMBERS):
@@ -248,7 +269,7 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
     console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
-                      terrain, overlay, stop)
+                      terrain, overlay, stop, banner, stream)
     # first picture from the session's current state, then follow its events
     snap = session.snapshot()
     for event in (
@@ -256,6 +277,7 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
         PreviewChanged(preview=snap.preview), SentChanged(sent=snap.sent), LinkChanged(link=snap.link),
         PredictedPathChanged(predicted=snap.predicted), RegimeChanged(regime=snap.regime),
         DisplayModeChanged(display=snap.display), DivergenceChanged(divergence=snap.divergence),
+        ReadinessChanged(readiness=snap.readiness),
     ):
         console.on_event(event)
     if snap.remote is not None:

@@ -22,6 +22,7 @@ from server.console import (
 )
 from webui.actions import Actions
 from webui.statement_range import StatementRange
+from webui.submit_needs import SubmitNeeds
 
 STATUS_MARK = {
     SentStatus.SENDING: "sending",
@@ -91,8 +92,10 @@ class MonitorPanel:
             first_hint="any statement may be typed; the editor sends a range that starts at statement 1 "
             "(the robot continues from where it already is) and says on the line why another cannot go",
         )
+        self.needs = SubmitNeeds(gui, session, actions, self.range)  # what Submit needs, before the click
         self.submit = gui.add_button("Submit range", color="green", icon=viser.Icon.SEND)
         self.submit.on_click(self._on_submit)
+        self.needs.add_button(gui)
         self.pages = gui.add_button_group("Sent list", ("Older", "Newer"))
         self.pages.on_click(self._on_page)
         self.sent = gui.add_markdown("Nothing sent yet.")
@@ -116,6 +119,7 @@ class MonitorPanel:
 
     def show_program(self, view: ProgramView) -> None:
         self.range.follow(view)
+        self.needs.refresh()
 
     def show(self, view: SentListView) -> None:
         self._view = view

@@ -3,7 +3,8 @@ play, pause, step and scrub it on the virtual arm; collision and joint-limit war
 
 The session plays the range with the telerobot's own interpreter and planner and reports where
 the arm is at each moment; the panel only sends the operator's choices and shows the result.
-The program is not changed; while a preview runs the editor allows only selection.
+The program is not changed; while a preview runs the editor allows only selection. The preview
+speed (1x, 2x, 5x, 10x or instant) is the session's: Play and "Preview and submit" use it.
 """
 
 from __future__ import annotations
@@ -13,6 +14,13 @@ import viser
 from server.console import PreviewView, ProgramView, Session
 from webui.actions import Actions
 from webui.statement_range import StatementRange
+
+
+SPEEDS: dict[str, float | str] = {"1x": 1.0, "2x": 2.0, "5x": 5.0, "10x": 10.0, "instant": "instant"}
+
+
+def speed_label(speed: float | str) -> str:
+    return "instant" if speed == "instant" else f"{float(speed):g}x"
 
 
 def warnings_markdown(view: PreviewView) -> str:
@@ -44,6 +52,9 @@ class PreviewPanel:
         self.range = StatementRange(gui, "From statement", "To statement")
         self.start = gui.add_button("Start preview", icon=viser.Icon.EYE)
         self.start.on_click(self._on_start)
+        self.speed = gui.add_dropdown("Preview speed", list(SPEEDS), initial_value="1x",
+                                      hint="plan time per second of playing; instant: checked at once, stands at the end")
+        self.speed.on_update(self._on_speed)
         self.controls = gui.add_button_group("Player", ("Play", "Pause", "Step", "End"))
         self.controls.on_click(self._on_control)
         self.time = gui.add_slider("Preview time (s)", min=0.0, max=1.0, step=0.01, initial_value=0.0, disabled=True)
@@ -66,6 +77,12 @@ class PreviewPanel:
         }[choice]
         self.actions.run(f"preview {choice.lower()}", call)
 
+    def _on_speed(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
+            return
+        speed = SPEEDS[self.speed.value]
+        self.actions.run("preview speed", lambda: self.session.preview.set_speed(speed))
+
     def _on_scrub(self, event: viser.GuiEvent) -> None:
         if self._setting or event.client is None:
             return
@@ -80,6 +97,9 @@ class PreviewPanel:
         self.report.content = warnings_markdown(view)
         self._setting = True
         try:
+            label = speed_label(view.speed)
+            if label in SPEEDS and self.speed.value != label:
+                self.speed.value = label
             self.time.disabled = not view.active
             if view.active:
                 top = max(view.duration, 0.01)

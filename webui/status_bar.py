@@ -27,8 +27,8 @@ from webui.actions import Actions
 log = logging.getLogger(__name__)
 
 AUTO = "auto (by zone)"
-REGIME_LABELS = {Regime.FREE: "free motion (online)", Regime.QUASI: "quasi-operation (preview, confirm)",
-                 Regime.OPERATION: "operation (single step)"}
+REGIME_LABELS = {Regime.FREE: "ONLINE (free zone)", Regime.QUASI: "OFFLINE (quasi-operation)",
+                 Regime.OPERATION: "SINGLE STEP (operation)"}
 MODE_LABELS = {DisplayMode.TELEPROGRAMMING: "teleprogramming", DisplayMode.TASK_PREVIEW: "task preview",
                DisplayMode.TELEPRESENCE: "telepresence"}
 

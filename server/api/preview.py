@@ -1,13 +1,17 @@
-"""The preview player (§4.3.7 task preview): begin a range, play, pause, step, seek, end."""
+"""The preview player (§4.3.7 task preview): begin a range, play, pause, step, seek, end; the
+preview speed; "Preview and submit" (preview a range at that speed, send it if it ends without
+warnings)."""
 
 from __future__ import annotations
+
+from typing import Literal
 
 from fastapi import APIRouter
 from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import MAX_COUNT, MAX_TIME_S, ApiIn
-from server.console import PreviewView
+from server.console import PreviewAndSubmitView, PreviewView
 
 router = APIRouter(prefix="/api/preview", tags=["preview"])
 
@@ -18,7 +22,13 @@ class RangeIn(ApiIn):
 
 
 class PlayIn(ApiIn):
-    rate: float = Field(1.0, gt=0, le=100, description="x real time")
+    rate: float | None = Field(None, gt=0, le=100, description="x real time; default: the preview speed")
+
+
+class SpeedIn(ApiIn):
+    speed: float | Literal["instant"] = Field(
+        description="plan seconds per clock second, in (0, 100], or 'instant' (stand at the end at once)"
+    )
 
 
 class SeekIn(ApiIn):
@@ -62,3 +72,17 @@ def step(session: SessionDep, client: ClientDep, body: StepIn | None = None) -> 
 @router.post("/end", response_model=PreviewView)
 def end(session: SessionDep, client: ClientDep) -> PreviewView:
     return session.preview.end(client=client)
+
+
+@router.post("/speed", response_model=PreviewView)
+def speed(body: SpeedIn, session: SessionDep, client: ClientDep) -> PreviewView:
+    """Set the preview speed for play and for preview-and-submit."""
+    return session.preview.set_speed(body.speed, client=client)
+
+
+@router.post("/submit", response_model=PreviewAndSubmitView)
+def preview_and_submit(body: RangeIn, session: SessionDep, client: ClientDep) -> PreviewAndSubmitView:
+    """Preview statements[start:stop] at the preview speed; if it ends without warnings, submit
+    them (at once for 'instant', else when the player reaches the end). Refused before
+    previewing when they could not be sent anyway."""
+    return session.preview.preview_and_submit(body.start, body.stop, client=client)

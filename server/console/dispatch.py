@@ -271,6 +271,19 @@ class Dispatch:
         """Where an action of the range would run in a mode the regime does not allow, put the MODE
         statement into the program before it and refuse (``ConsoleLineAdded``), once; a line the
         operator took out is not put back (under the lock)."""
+        need = self._mode_need(statements, start)
+        if need is None:
+            return
+        index, line, why = need
+        number = self._desk.add_console_line(index, line, why, self._modes.regime)
+        raise ConsoleLineAdded(
+            f"submit needs MODE {line.mode.value.upper()} first ({why}): added as line {number}, submit again"
+            f" (statements 1..{stop + 1})"
+        )
+
+    def _mode_need(self, statements: list[Statement], start: int) -> tuple[int, SetMode, str] | None:
+        """The MODE line the range needs and where (program index, statement, why), or None; a
+        deleted line the operation regime cannot go without is a ``ConflictError`` (under the lock)."""
         regime = self._modes.regime
         mode, set_here = self.robot_mode, False
         for i, st in enumerate(statements):
@@ -297,12 +310,53 @@ class Dispatch:
                         f"{why}: the MODE {need.value.upper()} line the console added was deleted; insert MODE "
                         f"{need.value.upper()} before statement {start + i + 1}, or leave the operation regime"
                     )
-                return  # the operator's choice: it goes in the mode it is in
-            number = self._desk.add_console_line(start + i, line, why, regime)
-            raise ConsoleLineAdded(
-                f"submit needs MODE {need.value.upper()} first ({why}): added as line {number}, submit again"
-                f" (statements 1..{stop + 1})"
-            )
+                return None  # the operator's choice: it goes in the mode it is in
+            return start + i, line, why
+        return None
+
+    # -- what submit would say, without sending (server.console.readiness reads these) ----------
+    def confirmed_through(self, stop: int) -> bool:
+        """The quasi regime's predicate: statements 1..``stop`` were previewed to their end
+        without warnings and are unchanged since."""
+        with self._ctx.lock:
+            c = self._desk.confirmed_range()
+            return c is not None and c[0] == 0 and c[1] >= stop
+
+    def previous_final(self) -> bool:
+        """The operation regime's predicate: every statement sent has its final status."""
+        with self._ctx.lock:
+            return all(s.final for s in self.sent)
+
+    def refusal(self, start: int, stop: int, *, regime: bool = True) -> str | None:
+        """The sentence ``submit(start, stop)`` would refuse with now, or None: its own checks in
+        its order (a robot, no preview running, the editor's range rule, the regime's rules, each
+        statement's check, a MODE line the regime needs), nothing sent and nothing changed. ``regime=False`` leaves the
+        regime's rule out (what "Preview and submit" checks before it previews). The control
+        lock is not asked: this is what the rules say, whoever asks."""
+        with self._ctx.lock:
+            try:
+                self.need_robot()
+                self._desk.check_not_previewing("submit statements")
+                editor = self._desk.editor
+                check = editor.state.check_submit(start, stop)
+                if check is not None:
+                    return check.message
+                statements = list(editor.state.statements[start:stop])
+                for i, st in enumerate(statements):
+                    try:
+                        checked_statement(st)
+                    except TeleprogError as exc:
+                        return f"statement {start + i + 1}: {exc}"
+                if regime:
+                    self._regime_rules(statements, start, stop)
+                    need = self._mode_need(statements, start)
+                    if need is not None:
+                        index, line, why = need
+                        return (f"MODE {line.mode.value.upper()} is needed before statement {index + 1} ({why}): "
+                                "Submit adds it as a line first; submit again to send")
+            except TeleprogError as exc:
+                return exc.refusal.message if isinstance(exc, RefusedByRule) else str(exc)
+        return None
 
     def open_communication(self, outgoing: list[Statement]) -> int:
         """Number a new communication and list its statements as sending (under the lock)."""

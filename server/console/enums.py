@@ -11,7 +11,7 @@ class Regime(str, Enum):
 
     FREE = "free"  # online: generated statements stream to the robot as they are made
     QUASI = "quasi"  # offline: program, preview, confirm, send
-    OPERATION = "operation"  # single step: one statement at a time, force mode, strict UNTIL
+    OPERATION = "operation"  # single step: one motion at a time, each ended by its UNTIL or on a clear path
 
 
 class DisplayMode(str, Enum):

@@ -21,6 +21,7 @@ from server.console.views import (
     ProgramView,
     RegimeView,
     RemoteArmView,
+    SubmitReadiness,
     SentListView,
     TerrainView,
     _View,
@@ -41,6 +42,7 @@ __all__ = [
     "TerrainChanged",
     "PlacementChanged",
     "ControlChanged",
+    "ReadinessChanged",
     "Notice",
     "SessionEvent",
 ]
@@ -117,6 +119,14 @@ class ControlChanged(_View):
     control: ControlView
 
 
+class ReadinessChanged(_View):
+    """What Submit needs for the whole program changed (regime, program, confirmation, preview,
+    the sent list)."""
+
+    type: Literal["readiness"] = "readiness"
+    readiness: SubmitReadiness
+
+
 class Notice(_View):
     """A sentence for the operator: a refused operation, a rejected communication, a warning."""
 
@@ -130,7 +140,7 @@ SessionEvent = Annotated[
     Union[
         ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
         PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
-        ControlChanged, TerrainChanged, PlacementChanged, Notice,
+        ControlChanged, TerrainChanged, PlacementChanged, ReadinessChanged, Notice,
     ],
     Field(discriminator="type"),
 ]

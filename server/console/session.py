@@ -12,6 +12,7 @@ bus and the clocks. Callers use the parts as sub-APIs, the way viser's server ex
 * ``session.remote``: telemetry, reported objects, the predicted path, divergence, re-sync;
 * ``session.link``: the link's health for the status bar;
 * ``session.modes``: the regime and the display mode;
+* ``session.readiness``: what Submit needs now, in the regime's words, and whether drags stream;
 * ``session.terrain``: ground checks and instrument placement (rover cells);
 * ``session.locator``: correcting objects from a camera;
 * ``session.control``: the control lock.
@@ -40,6 +41,7 @@ from server.console.locate import Locator
 from server.console.modes import Modes
 from server.console.previewer import Previewer
 from server.console.program_desk import ProgramDesk
+from server.console.readiness import Readiness
 from server.console.recovery import Recovery
 from server.console.remote import RemoteMirror
 from server.console.robot_seam import RobotLink
@@ -101,6 +103,8 @@ class Session:
         self.remote.link = self.link
         self.link.recovery = self.recovery
         self.terrain.desk, self.terrain.arm = self.program, self.arm
+        self.preview.submit, self.preview.submit_refusal = self.dispatch.submit, self.dispatch.refusal
+        self.readiness = Readiness(ctx, self.modes, self.program, self.dispatch, self.preview)
         self._closing = False
 
     def offers(self) -> CellOffers:
@@ -121,6 +125,7 @@ class Session:
                 link=self.link.view(), remote=self.remote.view(), predicted=self.remote.predicted_view(),
                 collision=self.arm.collision_view(), regime=self.modes.regime_view(), display=self.modes.display,
                 divergence=self.remote.divergence_view(), control=self.control.view(),
+                readiness=self.readiness.view(),
             )
 
     def resync(self, *, client: Caller | str | None = None) -> SessionSnapshot:

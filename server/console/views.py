@@ -36,6 +36,8 @@ __all__ = [
     "PredictedPathView",
     "CollisionView",
     "RegimeView",
+    "SubmitReadiness",
+    "PreviewAndSubmitView",
     "DivergenceView",
     "Caller",
     "ControlTakeover",
@@ -156,6 +158,10 @@ class PreviewView(_View):
     colliding_now: bool = False
     triangles: dict[str, list[int]] = Field(default_factory=dict, description="interfering triangles at t, per body")
     refusal: str | None = Field(None, description="why planning stopped before the range's end")
+    speed: float | Literal["instant"] = Field(
+        1.0, description="preview speed: plan seconds per clock second, or 'instant' (checked at once, stands at the end)"
+    )
+    then_submit: bool = Field(False, description="a 'Preview and submit' waits for this preview's end to send the range")
 
 
 class SentView(_View):
@@ -253,6 +259,35 @@ class RegimeView(_View):
     regime: Regime
     zone: Regime
     override: Regime | None = None
+
+
+class SubmitReadiness(_View):
+    """What Submit needs for a range now, in the regime's words, before the operator clicks:
+    computed from the same checks ``Dispatch.submit`` applies (``Dispatch.refusal``), so the page
+    and a refusal cannot disagree."""
+
+    regime: Regime
+    start: int = Field(description="first statement, 0-based")
+    stop: int = Field(description="one past the last")
+    ready: bool = Field(description="Submit would send this range now")
+    needs: str = Field(description="the regime's condition for this range, in words")
+    state: str = Field(description="where the range stands against it: 'ready to send 1-5' or what is missing")
+    blocker: str | None = Field(None, description="the sentence Submit would refuse with now")
+    confirmed: tuple[int, int] | None = Field(None, description="range previewed to its end without warnings")
+    streams: bool = Field(
+        False, description="generated statements go to the robot as they are made (free regime, generation on, a robot)"
+    )
+    line: str = Field(description="the one line the Submit tab shows")
+
+
+class PreviewAndSubmitView(_View):
+    """The answer to "Preview and submit": the preview as it stands, and what was sent if the
+    range already reached its end without warnings (an instant preview sends at once)."""
+
+    preview: PreviewView
+    submitted: bool = False
+    sent: SentListView | None = None
+    message: str = ""
 
 
 class DivergenceView(_View):
@@ -375,6 +410,7 @@ class SessionSnapshot(_View):
     display: DisplayMode
     divergence: DivergenceView
     control: ControlView
+    readiness: SubmitReadiness | None = Field(None, description="what Submit needs for the whole program now")
 
 
 def matrix_list(a: np.ndarray) -> list[list[float]]:

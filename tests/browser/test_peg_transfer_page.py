@@ -66,7 +66,7 @@ def test_peg_transfer_from_the_page(ui: ConsolePage) -> None:
     ui.text_appears(r"Link: connected", timeout=30)
     ui.text_appears(r"robot idle", timeout=30)
     ui.choose_regime("free")
-    ui.text_appears(r"Regime: free motion \(online\) \(operator override\)")
+    ui.text_appears(r"Regime: ONLINE \(free zone\) \(operator override\)")
     assert ui.session()["regime"]["regime"] == "free"
 
     sent = send_piece(ui, PIECES[0], 0)  # above the peg, down to contact, grasp
