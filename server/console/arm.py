@@ -119,7 +119,7 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool(self.robot, q, frames=frames, frame=frame, constraint=constraint, motion=motion, displacement=displacement),
-            JogMode.TOOL, client,
+            JogMode.TOOL, client, frame,
         )
 
     def jog_tool_to(self, world_T_goal: np.ndarray, *, frame: str, constraint: str, motion: str,
@@ -128,7 +128,7 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool_to(self.robot, q, world_T_goal, frames=frames, frame=frame, constraint=constraint, motion=motion),
-            JogMode.TOOL, client,
+            JogMode.TOOL, client, frame,
         )
 
     def release(self, *, client: Caller | str | None = None):
@@ -136,8 +136,9 @@ class VirtualArm:
         generated segment. Returns the program view."""
         return self._desk.end_stroke(client=client)
 
-    def _apply(self, step: Step, mode: JogMode, client: Caller | str | None) -> VirtualState:
-        """Compute the next joint vector from the current one and publish it, atomically."""
+    def _apply(self, step: Step, mode: JogMode, client: Caller | str | None, frame: str | None = None) -> VirtualState:
+        """Compute the next joint vector from the current one and publish it, atomically
+        (``frame``: a tool jog's frame, which generated statements are written in)."""
         with self._ctx.lock:
             self._control.check(client)
             busy = self._preview.running_range()
@@ -148,7 +149,7 @@ class VirtualArm:
             result = out if isinstance(out, JogResult) else None
             q = out.q if isinstance(out, JogResult) else out
             self._state = VirtualState(q.copy(), world_T_tcp(self.robot, q, self._ctx.frames), result, before.version + 1)
-            generated = self._desk.sample_stroke(before, self._state, mode)
+            generated = self._desk.sample_stroke(before, self._state, mode, frame)
             state = self._state
             events = self.refresh()
         self._ctx.bus.arm.call([state])
