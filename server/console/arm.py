@@ -34,6 +34,7 @@ from shared.cells.object_world import ObjectWorld
 from shared.collision.cell_check import CellCollision, CellReport
 from shared.errors import InputError
 from shared.program.generator import JogMode
+from shared.robots.handles import ToolHandle, handle_turn, joint_handle, tool_goal, tool_handle
 from shared.robots.jog import JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
 from shared.spatial import matrix_to_rpy
 
@@ -130,6 +131,35 @@ class VirtualArm:
             lambda q: jog_tool_to(self.robot, q, world_T_goal, frames=frames, frame=frame, constraint=constraint, motion=motion),
             JogMode.TOOL, client, frame,
         )
+
+    # -- drag handles (shared.robots.handles) ------------------------------------------------------
+    def tool_handle(self, frame: str) -> ToolHandle:
+        """The tool's drag handle for jogs in ``frame``: at the tool point with the frame's axes,
+        and the grip to pass back with :meth:`drag_tool_handle`."""
+        with self._ctx.lock:
+            return tool_handle(frame, self._ctx.frames, self._state.world_T_tcp)
+
+    def drag_tool_handle(self, world_T_handle: np.ndarray, handle_T_tcp: np.ndarray, *, frame: str, constraint: str,
+                         motion: str, client: Caller | str | None = None) -> VirtualState:
+        """The tool's handle was dragged to ``world_T_handle``: follow it with the grip it was
+        placed with, under the constraint."""
+        return self.jog_tool_to(tool_goal(world_T_handle, handle_T_tcp), frame=frame, constraint=constraint, motion=motion, client=client)
+
+    def joint_handle(self, joint: int) -> np.ndarray:
+        """Joint ``joint``'s drag handle (world): at the joint, z along its axis."""
+        with self._ctx.lock:
+            return joint_handle(self.robot, self._state.q, joint, self._ctx.cell.world_T_base)
+
+    def turn_joint_to_handle(self, joint: int, world_T_handle: np.ndarray, *, client: Caller | str | None = None) -> VirtualState:
+        """Joint ``joint``'s ring was turned to ``world_T_handle``: turn the joint by the ring's
+        turn about the joint's axis from where the joint stands, stopping at its limit."""
+        world_T_base = self._ctx.cell.world_T_base
+
+        def step(q: np.ndarray) -> JogResult:
+            delta = handle_turn(joint_handle(self.robot, q, joint, world_T_base), world_T_handle)
+            return jog_joint(self.robot, q, joint, delta)
+
+        return self._apply(step, JogMode.JOINT, client)
 
     def release(self, *, client: Caller | str | None = None):
         """The operator let go of the gizmo or slider: the program desk closes the open
