@@ -84,8 +84,9 @@ class ProgramDesk:
         self._generator = ProgramGenerator(ctx.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
         self._stroke_mode: JogMode | None = None
         self._sample_t = -float("inf")  # time of the last sample fed to the generator
-        self._last_generated: tuple[Statement, ProgramState] | None = None
-        """The statement generation put last in the program, and the editor's state right after."""
+        self._last_generated: tuple[Statement, ProgramState, bool] | None = None
+        """The statement generation put last in the program, the editor's state right after, and
+        whether undoing the editor's last step takes exactly that statement out (it was inserted)."""
         self.start = ProgramStart(cell.q_home.copy())
         self._confirmed: tuple[int, int, tuple] | None = None
 
@@ -302,12 +303,12 @@ class ProgramDesk:
                 if isinstance(result, Refusal):
                     notices.append(Notice(level="warning", message=f"generated {st.kind} not added: {result.message}", rule=result.rule.value))
                     break
-                self._last_generated = (st, editor.state)
+                self._last_generated = (st, editor.state, True)
                 inserted += 1
             if not at_end and keep < editor.state.empty_index:
                 editor.select(keep)
             if self._last_generated is not None and inserted:
-                self._last_generated = (self._last_generated[0], editor.state)
+                self._last_generated = (self._last_generated[0], editor.state, self._last_generated[2])
             stream = inserted and self._modes.regime is Regime.FREE and self.dispatch.connected
         self._ctx.bus.emit([ProgramChanged(program=self.view()), *notices])
         if stream:
@@ -330,18 +331,18 @@ class ProgramDesk:
         statements = editor.state.statements
         if last is None or not statements or statements[-1] != last[0]:
             return False
-        if editor.state is last[1] and editor.can_undo:
+        if editor.state is last[1] and last[2] and editor.can_undo:
             editor.undo()
             editor.select_empty()
             if not isinstance(editor.insert(statement), Refusal):
-                self._last_generated = (statement, editor.state)
+                self._last_generated = (statement, editor.state, True)
                 return True
             editor.redo()
             return False
         editor.select(len(statements) - 1)
         if isinstance(editor.modify(statement), Refusal):
             return False
-        self._last_generated = (statement, editor.state)
+        self._last_generated = (statement, editor.state, False)
         return True
 
 

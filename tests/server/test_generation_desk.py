@@ -84,3 +84,13 @@ def test_a_statement_the_operator_changed_or_followed_is_not_merged_into(session
     session.program.insert("DRIVE J1 TO 5 deg")  # a statement after the DRAW
     stroke(session, clock, "world", 0, [0.02])
     assert [s.kind for s in statements(session)] == ["DRAW", "DRAW", "DRIVE", "DRAW"]
+
+
+def test_strokes_go_on_merging_while_the_operator_has_the_line_selected(session: Session, clock) -> None:
+    stroke(session, clock, "world", 0, [0.015])
+    session.program.select(0)  # the operator looks at the statement: a selection move, not an edit
+    stroke(session, clock, "world", 0, [0.015])
+    stroke(session, clock, "world", 0, [0.015])
+    view = session.program.view()
+    assert [e.kind for e in view.entries] == ["DRAW", "EMPTY"] and view.selected == 0
+    np.testing.assert_allclose(np.array(view.entries[0].statement.position), np.asarray(session.arm.view().world_T_tcp)[:3, 3], atol=1e-5)
