@@ -18,7 +18,13 @@ import numpy as np
 import viser
 
 from server.console import ArmView, Session
-from shared.robots.handles import JOINT_HANDLES, HandleChoice, joint_handle, tool_handle, tool_handles
+from shared.robots.handles import (
+    JOINT_HANDLES,
+    HandleChoice,
+    joint_handle,
+    tool_handle,
+    tool_handles,
+)
 from webui.actions import Actions
 from webui.scene_util import matrix, wxyz
 

@@ -22,7 +22,13 @@ import numpy as np
 import pinocchio as pin
 
 from shared.errors import InputError, UnknownNameError
-from shared.robots.jog import CONSTRAINTS, MOTIONS, JogFrames, frame_rotation, rotation_axis_mask
+from shared.robots.jog import (
+    CONSTRAINTS,
+    MOTIONS,
+    JogFrames,
+    frame_rotation,
+    rotation_axis_mask,
+)
 from shared.robots.model import Robot
 from shared.spatial import invert
 

@@ -31,7 +31,7 @@ FOV = math.radians(75.0)
 
 @pytest.fixture(scope="module")
 def module_ui(tmp_path_factory, chromium):
-    console = start_console(tmp_path_factory.mktemp("drive"), "--no-robot")
+    console = start_console(tmp_path_factory.mktemp("drive"), "--no-robot", timeout=180.0)  # a loaded machine starts it slowly
     context = chromium.new_context(viewport={"width": 1400, "height": 900})
     ui = ConsolePage(context.new_page(), console)
     ui.open()
@@ -81,10 +81,14 @@ def drag_until_moved(ui: ConsolePage, grabs: list[np.ndarray], pull: tuple[float
     raise AssertionError("no grab point on the handle moved the arm")
 
 
+def drive_toggle(ui: ConsolePage):
+    return ui.row("Generate statements").locator("input[type=checkbox]").first
+
+
 def test_generation_is_on_from_the_start_and_the_drive_tab_toggles_the_one_flag(ui: ConsolePage) -> None:
     assert ui.session()["program"]["auto_generate"]
     ui.tab("Drive")
-    toggle = ui.page.get_by_label("Generate statements", exact=True)
+    toggle = drive_toggle(ui)
     assert toggle.is_checked()
     toggle.click()
     wait_for(lambda: not ui.session()["program"]["auto_generate"], what="generation off from the Drive tab")
@@ -93,7 +97,7 @@ def test_generation_is_on_from_the_start_and_the_drive_tab_toggles_the_one_flag(
     ui.page.get_by_label("Automatic generation", exact=True).click()
     wait_for(lambda: ui.session()["program"]["auto_generate"], what="generation on from the Program tab")
     ui.tab("Drive")
-    wait_for(lambda: ui.page.get_by_label("Generate statements", exact=True).is_checked(), what="the Drive tab shows it on")
+    wait_for(lambda: drive_toggle(ui).is_checked(), what="the Drive tab shows it on")
 
 
 def test_a_straight_drag_on_the_z_arrow_writes_one_statement_in_the_chosen_frame(ui: ConsolePage) -> None:
@@ -159,3 +163,26 @@ def test_choosing_a_joint_offers_a_ring_that_turns_that_joint(ui: ConsolePage) -
     q = np.asarray(ui.session()["arm"]["q"])
     np.testing.assert_allclose(np.delete(q, 2), np.delete(q0, 2), atol=1e-9)  # J3 alone
     assert program(ui)[-1]["text"].startswith("DRIVE J3 TO")
+
+
+def test_a_slider_dragged_with_pauses_writes_one_drive(ui: ConsolePage) -> None:
+    ui.tab("Drive")
+    before = len(program(ui))
+    q6 = ui.session()["arm"]["q_deg"][5]
+    thumb = ui.row("J6").locator(".mantine-Slider-thumb").first
+    thumb.scroll_into_view_if_needed()  # the joints sit below the fold of the Drive tab
+    time.sleep(0.3)
+    box = thumb.bounding_box()
+    assert box is not None
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    ui.page.mouse.move(x, y)
+    ui.page.mouse.down()
+    for k in range(1, 4):  # a hand that drags, stops a moment (longer than a release), drags on
+        ui.page.mouse.move(x + 12 * k, y, steps=6)
+        time.sleep(0.7)
+    ui.page.mouse.up()
+    wait_for(lambda: abs(ui.session()["arm"]["q_deg"][5] - q6) > 1.0, what="J6 turned by the slider")
+    time.sleep(0.8)  # the slider's release (a pause) closes the last segment
+    added = program(ui)[before:]
+    assert [e["text"].split()[:2] for e in added] == [["DRIVE", "J6"]], [e["text"] for e in added]
+    assert float(added[0]["text"].split()[3]) == pytest.approx(ui.session()["arm"]["q_deg"][5], abs=0.01)

@@ -20,7 +20,13 @@ from shared.program.generator import (
     generate_program,
     merged,
 )
-from shared.spatial import exp_so3, invert, make_transform, rotation_angle, rpy_to_matrix
+from shared.spatial import (
+    exp_so3,
+    invert,
+    make_transform,
+    rotation_angle,
+    rpy_to_matrix,
+)
 
 DT = 0.01
 Q0 = np.radians([10.0, -40.0, 170.0, 5.0, 40.0, -10.0])

@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
-from shared.robots.handles import JOINT_HANDLES, handle_turn, joint_handle, tool_goal, tool_handle, tool_handles
+from shared.robots.handles import (
+    JOINT_HANDLES,
+    handle_turn,
+    joint_handle,
+    tool_goal,
+    tool_handle,
+    tool_handles,
+)
 from shared.robots.jog import JogFrames, jog_tool, world_T_tcp
 from shared.spatial import exp_so3, log_so3
 
