@@ -88,7 +88,7 @@ class RunningConsole:
         return httpx.request(method, self.url + path, timeout=10.0, **kwargs)
 
 
-def start_console(tmp_path: Path, *extra: str, timeout: float = 60.0) -> RunningConsole:
+def start_console(tmp_path: Path, *extra: str, timeout: float = 180.0) -> RunningConsole:
     port = free_port()
     log_path = tmp_path / "console.log"
     log = log_path.open("w")

@@ -114,6 +114,7 @@ class Console:
             self.drive.show_collision(event.collision)
             self._draw_collision()
         elif isinstance(event, ProgramChanged):
+            self.drive.show_program(event.program)
             self.program.show(event.program)
             self.preview.show_program(event.program)
             self.monitor.show_program(event.program)
@@ -188,7 +189,7 @@ class Console:
         elif self._arm is not None:
             self.scene.show_arm(np.asarray(self._arm.q))
             self.scene.show_objects({k: np.asarray(v) for k, v in self._arm.object_poses.items()})
-        self.drive.gizmo.visible = mode is DisplayMode.TELEPROGRAMMING and self.drive.part.value == "Tool"
+        self.drive.gizmo.visible = mode is DisplayMode.TELEPROGRAMMING  # on the tool, or a ring on the chosen joint
 
     def _remote_objects(self) -> dict[str, np.ndarray]:
         poses = self._remote.object_poses if self._remote is not None else {}

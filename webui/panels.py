@@ -1,7 +1,9 @@
 """The driving panel (thesis 4.3.4): moving part, frame, direction constraint (one axis or one
-plane), translate or rotate, a slider per joint, frames on demand, and a transform gizmo on the
-tool point. Every control turns into a session call; a blocked motion shows why, and a
-collision while driving shows as a warning here and red triangles in the scene.
+plane), translate or rotate, whether driving generates statements, a slider per joint, frames
+on demand, and a transform gizmo (``webui.drive_gizmo``: the handles the choice allows, in the
+chosen frame; a ring on a chosen joint). Every control turns into a session call; a blocked
+motion shows why, and a collision while driving shows as a warning here and red triangles in
+the scene.
 """
 
 from __future__ import annotations
@@ -12,11 +14,11 @@ import threading
 import numpy as np
 import viser
 
-from server.console import ArmView, CollisionView, Session
+from server.console import ArmView, CollisionView, ProgramView, Session
 from shared.robots.jog import CONSTRAINTS, FRAME_NAMES, MOTIONS
 from webui.actions import Actions
+from webui.drive_gizmo import DriveGizmo
 from webui.scene import FRAME_AXES, CellScene
-from webui.scene_util import matrix, wxyz
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +46,11 @@ class DrivePanel:
         self._directions = {direction_label(c): c for c in (*AXES, *PLANES)}
         self.constraint = gui.add_dropdown("Direction", list(self._directions), initial_value=direction_label("xy"))
         self.motion = gui.add_dropdown("Motion", list(MOTIONS), initial_value="translate")
+        # the session's one flag, shown here and on the Program tab ("Automatic generation")
+        self.generate = gui.add_checkbox("Generate statements", initial_value=session.program.view().auto_generate,
+                                         hint="write the motion you drive as program statements, in the chosen frame")
+        self._setting = False
+        self.generate.on_update(self._on_generate)
         self.status = gui.add_markdown("")
         self.collision = gui.add_markdown("")
         with gui.add_folder("Joints (deg)"):
@@ -59,15 +66,19 @@ class DrivePanel:
             for name in FRAME_AXES:
                 box = gui.add_checkbox(f"Show {name}", initial_value=False)
                 box.on_update(lambda event, name=name: scene.set_axes_visible(name, bool(event.target.value)))
-        self.gizmo = server.scene.add_transform_controls("/tool_gizmo", scale=0.18)
-        self._dragging = False
-        self._arm: ArmView | None = None
+        self.drive_gizmo = DriveGizmo(server, session, actions, self._choice)
+        self.gizmo = self.drive_gizmo.handle
         self._timer_lock = threading.Lock()
         self._release_timer: threading.Timer | None = None
-        self.gizmo.on_update(self._on_gizmo)
-        for control in (self.part, self.motion, self.constraint):
-            control.on_update(lambda _: self._refresh_gizmo())
-        self._refresh_gizmo()
+        for control in (self.part, self.frame, self.motion, self.constraint):
+            control.on_update(lambda _: self.drive_gizmo.refresh())
+        self.drive_gizmo.refresh()
+
+    def _choice(self) -> tuple[int | None, str, str, str]:
+        """(joint number or ``None`` for the tool, frame, constraint, motion) as chosen."""
+        part = self.part.value
+        joint = None if part == TOOL else int(part[1:])
+        return joint, self.frame.value, self._directions[self.constraint.value], self.motion.value
 
     # -- callbacks ---------------------------------------------------------------------------
     def _slider_callback(self, joint: int):
@@ -90,59 +101,19 @@ class DrivePanel:
             self._release_timer.daemon = True
             self._release_timer.start()
 
-    def _on_drag_start(self, _event) -> None:
-        self._dragging = True
-
-    def _on_drag_end(self, _event) -> None:
-        """The operator let go: the session closes the open generated segment."""
-        self._dragging = False
-        self.actions.run("release", self.session.arm.release)
-        if self._arm is not None:
-            self._snap_gizmo(self._arm)
-
-    def _on_gizmo(self, event) -> None:
-        phase = getattr(event, "phase", "update")
-        if phase == "start":
-            self._on_drag_start(event)
+    def _on_generate(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
             return
-        if phase == "end":
-            self._on_drag_end(event)
-            return
-        if self.part.value != TOOL:
-            return
-        goal = matrix(self.gizmo.wxyz, self.gizmo.position)
-        constraint = self._directions[self.constraint.value]
-        self.actions.run(
-            "drive",
-            lambda: self.session.arm.jog_tool_to(goal, frame=self.frame.value, constraint=constraint, motion=self.motion.value),
-        )
-        # the session's events have redrawn the arm by now: send them at once rather than at the
-        # end of viser's window (up to 1/60 s), which was most of a drag update's round trip
-        self.server.flush()
-
-    def _refresh_gizmo(self) -> None:
-        """Offer only the handles the chosen constraint allows (the jog rules still apply)."""
-        tool = self.part.value == TOOL
-        self.gizmo.visible = tool
-        rotate = self.motion.value == "rotate"
-        self.gizmo.disable_rotations = not rotate
-        self.gizmo.disable_axes = rotate
-        self.gizmo.disable_sliders = rotate
-
-    def _snap_gizmo(self, arm: ArmView) -> None:
-        world_T_tcp = np.asarray(arm.world_T_tcp)
-        self.gizmo.wxyz = wxyz(world_T_tcp)
-        self.gizmo.position = world_T_tcp[:3, 3]
+        on = bool(self.generate.value)
+        self.actions.run("automatic generation", lambda: self.session.program.set_auto_generate(on))
 
     # -- session events -----------------------------------------------------------------------
     def show_arm(self, arm: ArmView) -> None:
-        self._arm = arm
         for slider, value in zip(self.sliders, arm.q_deg):
             rounded = float(round(value, 1))
             if slider.value != rounded:
                 slider.value = rounded
-        if not self._dragging:
-            self._snap_gizmo(arm)
+        self.drive_gizmo.snap(arm)
         x, y, z = arm.tool_xyz_mm
         text = f"Tool (world): x {x:.1f} mm, y {y:.1f} mm, z {z:.1f} mm"
         if arm.held:
@@ -150,6 +121,14 @@ class DrivePanel:
         if arm.blocked:
             text += f"  \n**Blocked ({arm.blocked}):** {arm.message}"
         self.status.content = text
+
+    def show_program(self, view: ProgramView) -> None:
+        if self.generate.value != view.auto_generate:
+            self._setting = True
+            try:
+                self.generate.value = view.auto_generate
+            finally:
+                self._setting = False
 
     def show_collision(self, view: CollisionView) -> None:
         lines = []

@@ -34,6 +34,7 @@ from shared.cells.object_world import ObjectWorld
 from shared.collision.cell_check import CellCollision, CellReport
 from shared.errors import InputError
 from shared.program.generator import JogMode
+from shared.robots.handles import ToolHandle, handle_turn, joint_handle, tool_goal, tool_handle
 from shared.robots.jog import JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
 from shared.spatial import matrix_to_rpy
 
@@ -119,7 +120,7 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool(self.robot, q, frames=frames, frame=frame, constraint=constraint, motion=motion, displacement=displacement),
-            JogMode.TOOL, client,
+            JogMode.TOOL, client, frame,
         )
 
     def jog_tool_to(self, world_T_goal: np.ndarray, *, frame: str, constraint: str, motion: str,
@@ -128,16 +129,46 @@ class VirtualArm:
         frames = self._ctx.frames
         return self._apply(
             lambda q: jog_tool_to(self.robot, q, world_T_goal, frames=frames, frame=frame, constraint=constraint, motion=motion),
-            JogMode.TOOL, client,
+            JogMode.TOOL, client, frame,
         )
+
+    # -- drag handles (shared.robots.handles) ------------------------------------------------------
+    def tool_handle(self, frame: str) -> ToolHandle:
+        """The tool's drag handle for jogs in ``frame``: at the tool point with the frame's axes,
+        and the grip to pass back with :meth:`drag_tool_handle`."""
+        with self._ctx.lock:
+            return tool_handle(frame, self._ctx.frames, self._state.world_T_tcp)
+
+    def drag_tool_handle(self, world_T_handle: np.ndarray, handle_T_tcp: np.ndarray, *, frame: str, constraint: str,
+                         motion: str, client: Caller | str | None = None) -> VirtualState:
+        """The tool's handle was dragged to ``world_T_handle``: follow it with the grip it was
+        placed with, under the constraint."""
+        return self.jog_tool_to(tool_goal(world_T_handle, handle_T_tcp), frame=frame, constraint=constraint, motion=motion, client=client)
+
+    def joint_handle(self, joint: int) -> np.ndarray:
+        """Joint ``joint``'s drag handle (world): at the joint, z along its axis."""
+        with self._ctx.lock:
+            return joint_handle(self.robot, self._state.q, joint, self._ctx.cell.world_T_base)
+
+    def turn_joint_to_handle(self, joint: int, world_T_handle: np.ndarray, *, client: Caller | str | None = None) -> VirtualState:
+        """Joint ``joint``'s ring was turned to ``world_T_handle``: turn the joint by the ring's
+        turn about the joint's axis from where the joint stands, stopping at its limit."""
+        world_T_base = self._ctx.cell.world_T_base
+
+        def step(q: np.ndarray) -> JogResult:
+            delta = handle_turn(joint_handle(self.robot, q, joint, world_T_base), world_T_handle)
+            return jog_joint(self.robot, q, joint, delta)
+
+        return self._apply(step, JogMode.JOINT, client)
 
     def release(self, *, client: Caller | str | None = None):
         """The operator let go of the gizmo or slider: the program desk closes the open
         generated segment. Returns the program view."""
         return self._desk.end_stroke(client=client)
 
-    def _apply(self, step: Step, mode: JogMode, client: Caller | str | None) -> VirtualState:
-        """Compute the next joint vector from the current one and publish it, atomically."""
+    def _apply(self, step: Step, mode: JogMode, client: Caller | str | None, frame: str | None = None) -> VirtualState:
+        """Compute the next joint vector from the current one and publish it, atomically
+        (``frame``: a tool jog's frame, which generated statements are written in)."""
         with self._ctx.lock:
             self._control.check(client)
             busy = self._preview.running_range()
@@ -148,7 +179,7 @@ class VirtualArm:
             result = out if isinstance(out, JogResult) else None
             q = out.q if isinstance(out, JogResult) else out
             self._state = VirtualState(q.copy(), world_T_tcp(self.robot, q, self._ctx.frames), result, before.version + 1)
-            generated = self._desk.sample_stroke(before, self._state, mode)
+            generated = self._desk.sample_stroke(before, self._state, mode, frame)
             state = self._state
             events = self.refresh()
         self._ctx.bus.arm.call([state])

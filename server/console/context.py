@@ -54,6 +54,8 @@ class SessionSettings:
     back_away_speed: float = 0.01
     """m/s: the tool speed of a back-away motion."""
     generator: GeneratorSettings = field(default_factory=GeneratorSettings)
+    auto_generate: bool = True
+    """Automatic generation is on when the session starts: the first drag records statements."""
 
 
 @dataclass

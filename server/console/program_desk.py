@@ -3,9 +3,15 @@ from the operator's strokes, program files, and where the program starts.
 
 * The editor (``shared.program.editor``) applies every operation on a copy and keeps it only when
   the operation and the program's view both succeed: a refused or failed edit changes nothing.
-* Generation (``shared.program.generator``): every change of the virtual arm is a sample of the
-  operator's stroke; letting go flushes the open segment. Generated statements go to the
-  program's end; in the free regime they stream to the robot unless their path is hazardous.
+* Generation (``shared.program.generator``), on from the start (``SessionSettings.auto_generate``):
+  every change of the virtual arm is a sample of the operator's stroke; letting go flushes the
+  open segment. Cartesian targets are written in the frame the operator jogs in (world, base,
+  work; a tool-frame jog writes in the generator's default frame, since a tool-frame target
+  depends on where its statement starts). Generated statements go to the program's end; one
+  that continues the last generated statement (same joint, same line: the generator says so)
+  replaces it while it is still the program's last statement, as one edit with it (undo takes
+  the whole stroke back). In the free regime they stream to the robot unless their path is
+  hazardous.
 * Lines the console adds (a MODE statement the regime needs, ``server.console.dispatch``) are
   inserted as ordinary, undoable edits and marked in the view (``added_by="console"`` with the
   reason) until they are sent; the operator may delete them like any line. One the operator took
@@ -46,10 +52,10 @@ from server.console.views import (
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
-from shared.language.statements import Speed, Statement, Until, is_task, program_to_json
+from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
 from shared.motion.plan_check import plan_or_refuse
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
-from shared.program.generator import JogMode, ProgramGenerator, RobotSample
+from shared.program.generator import Generated, JogMode, ProgramGenerator, RobotSample
 
 if TYPE_CHECKING:
     from server.console.control import ControlLock
@@ -98,10 +104,14 @@ class ProgramDesk:
         self.preview: Previewer | None = None  # set by the session
         self.dispatch: Dispatch | None = None  # set by the session
         self._editor = Editor()
-        self._auto = False
+        self._auto = bool(ctx.settings.auto_generate)
         cell = ctx.cell
         self._generator = ProgramGenerator(ctx.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
         self._stroke_mode: JogMode | None = None
+        self._sample_t = -float("inf")  # time of the last sample fed to the generator
+        self._last_generated: tuple[Statement, ProgramState, bool] | None = None
+        """The statement generation put last in the program, the editor's state right after, and
+        whether undoing the editor's last step takes exactly that statement out (it was inserted)."""
         self.start = ProgramStart(cell.q_home.copy())
         self._confirmed: tuple[int, int, tuple] | None = None
         self._console_lines: list[ConsoleLine] = []  # added by the console, not sent yet
@@ -175,7 +185,7 @@ class ProgramDesk:
         """Switch automatic generation; switching on anchors the generator at the arm's state."""
         with self._ctx.lock:
             self._control.check(client)
-            flushed = self._generator.flush() if self._auto and not on else []
+            flushed = self._generator.finish() if self._auto and not on else []
             self._auto = bool(on)
             self._generator.reset()
             self._stroke_mode = None
@@ -250,6 +260,7 @@ class ProgramDesk:
             self._console_lines.clear()
             self._declined.clear()
             self._refusal = None
+            self._last_generated = None
         view = self.view()
         self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
         return view
@@ -368,26 +379,34 @@ class ProgramDesk:
         self._console_lines = [c for c in self._console_lines if not any(c.statement is s for s in statements)]
 
     # -- generation ----------------------------------------------------------------------------
-    def sample_stroke(self, before: VirtualState, after: VirtualState, mode: JogMode) -> list[Statement]:
-        """Feed one change of the virtual arm to the generator (under the lock); what it made."""
+    def sample_stroke(self, before: VirtualState, after: VirtualState, mode: JogMode, frame: str | None = None) -> list[Generated]:
+        """Feed one change of the virtual arm to the generator (under the lock); what it made.
+        ``frame``: the jog frame of a tool motion, the frame its statements are written in."""
         if not self._auto:
             return []
-        generated: list[Statement] = []
-        now = self._ctx.clock()
+        generated: list[Generated] = []
+        # samples must come in increasing time: changes within one clock tick (a fast caller, a
+        # test's manual clock) are spaced a microsecond apart
+        last = self._sample_t
+        now = max(self._ctx.clock(), last + 2e-6)
+        if mode is JogMode.TOOL and frame is not None:
+            generated += self._generator.set_frame(GENERATED_FRAME.get(frame, self._ctx.settings.generator.frame))
         if self._stroke_mode is not None and self._stroke_mode is not mode:
-            generated += self._generator.flush()
+            generated += self._generator.finish()
         if self._stroke_mode is not mode:
             # a fresh stroke: the state before it is the stroke's first sample
-            generated += self._generator.feed(RobotSample(t=now - 1e-3, q=before.q.copy(), mode=mode, world_T_tool=before.world_T_tcp))
+            first = max(now - 1e-3, (last + now) / 2.0)
+            generated += self._generator.push(RobotSample(t=first, q=before.q.copy(), mode=mode, world_T_tool=before.world_T_tcp))
             self._stroke_mode = mode
-        generated += self._generator.feed(RobotSample(t=now, q=after.q.copy(), mode=mode, world_T_tool=after.world_T_tcp))
+        generated += self._generator.push(RobotSample(t=now, q=after.q.copy(), mode=mode, world_T_tool=after.world_T_tcp))
+        self._sample_t = now
         return generated
 
     def end_stroke(self, *, client: Caller | str | None = None) -> ProgramView:
         """The operator let go: close the open generated segment."""
         with self._ctx.lock:
             self._control.check(client)
-            statements = self._generator.flush() if self._auto else []
+            statements = self._generator.finish() if self._auto else []
             self._stroke_mode = None  # the next stroke starts with the state it starts from
         self.take_generated(statements)
         return self.view()
@@ -396,9 +415,11 @@ class ProgramDesk:
         """Anchor generation afresh (a re-sync; under the lock)."""
         self._generator.reset()
         self._stroke_mode = None
+        self._last_generated = None
 
-    def take_generated(self, statements: list[Statement]) -> None:
-        """Put generated statements at the program's end; in the free regime stream them."""
+    def take_generated(self, statements: list[Generated]) -> None:
+        """Put generated statements at the program's end, a continuing one in place of the last
+        generated statement; in the free regime stream them."""
         if not statements:
             return
         notices: list[SessionEvent] = []
@@ -407,17 +428,24 @@ class ProgramDesk:
             keep = editor.state.selected_index
             at_end = keep == editor.state.empty_index
             inserted = 0
-            for st in statements:
+            for g in statements:
+                st = g.statement
                 if editor.state.previewing:
                     break
+                if g.continues and self._replace_last_generated(editor, st):
+                    inserted += 1
+                    continue
                 editor.select_empty()
                 result = editor.insert(st)
                 if isinstance(result, Refusal):
                     notices.append(Notice(level="warning", message=f"generated {st.kind} not added: {result.message}", rule=result.rule.value))
                     break
+                self._last_generated = (st, editor.state, True)
                 inserted += 1
             if not at_end and keep < editor.state.empty_index:
                 editor.select(keep)
+            if self._last_generated is not None and inserted:
+                self._last_generated = (self._last_generated[0], editor.state, self._last_generated[2])
             stream = inserted and self._modes.regime is Regime.FREE and self.dispatch.connected
         self._ctx.bus.emit([ProgramChanged(program=self.view()), *notices])
         if stream:
@@ -433,3 +461,30 @@ class ProgramDesk:
                     self.dispatch.submit(0, self.state.empty_index, client=self._control.holder)
             except TeleprogError as exc:
                 self._ctx.bus.emit([Notice(level="warning", message=f"streaming refused: {exc}")])
+
+    def _replace_last_generated(self, editor: Editor, statement: Statement) -> bool:
+        """Put ``statement`` in place of the last generated statement while that is still the
+        program's last statement, unchanged (not sent, edited or deleted); under the lock.
+        Untouched since it was added, its insertion is undone and ``statement`` inserted: one
+        edit for the stroke. Otherwise the last statement is modified (an edit of its own)."""
+        last = self._last_generated
+        statements = editor.state.statements
+        if last is None or not statements or statements[-1] != last[0]:
+            return False
+        if editor.state is last[1] and last[2] and editor.can_undo:
+            editor.undo()
+            editor.select_empty()
+            if not isinstance(editor.insert(statement), Refusal):
+                self._last_generated = (statement, editor.state, True)
+                return True
+            editor.redo()
+            return False
+        editor.select(len(statements) - 1)
+        if isinstance(editor.modify(statement), Refusal):
+            return False
+        self._last_generated = (statement, editor.state, False)
+        return True
+
+
+#: the jog frames whose names are statement frames; a tool-frame jog writes in the default frame
+GENERATED_FRAME = {"world": Frame.WORLD, "base": Frame.BASE, "work": Frame.WORK}

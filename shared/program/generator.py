@@ -42,14 +42,26 @@ unchanged joints, DRAW keeps the orientation, ROTATE the position), so no jitter
 targets. The thesis assumes the jog mode (joint or tool) does not change within a statement: a mode
 change closes the open segment.
 
-Cartesian targets are expressed in a named frame (``settings.frame``, BASE by default); samples
-may carry the tool pose in the base or the world frame, and the caller passes ``world_T_base`` /
-``world_T_work`` when a conversion between frames is needed.
+Continuations. A statement generated right after another of the same kind, in the same frame,
+that goes on the same way is marked as continuing it (``Generated.continues``): a DRIVE of the
+same joint, a DRAW whose path is the same straight line onward (the previous target within
+``merge_tolerance`` of the line from the previous start to the new target), a ROTATE about the
+same axis onward (``merge_angle``), a MOVES that does both, a MOVE along the same joint-space
+line. The program then replaces the previous statement's target with the new one instead of
+adding a statement (``merged``): one straight stroke cut by a pause or a change of pace is one
+statement, and action continuity holds since the replaced statement started where the previous
+one did. ``feed``/``flush``/``generate`` keep giving every segment's statement.
+
+Cartesian targets are expressed in a named frame (``settings.frame``, BASE by default; the
+console follows the frame the operator jogs in, ``set_frame``); samples may carry the tool pose
+in the base or the world frame, and the caller passes ``world_T_base`` / ``world_T_work`` when a
+conversion between frames is needed.
 """
 
 from __future__ import annotations
 
 import logging
+import dataclasses
 import math
 from collections import deque
 from collections.abc import Iterable, Sequence
@@ -61,7 +73,7 @@ import numpy as np
 from shared.errors import InputError
 from shared.language.statements import Draw, Drive, Frame, Move, Moves, Rotate, Statement
 from shared.language.units import TextUnit, to_si
-from shared.spatial import invert, matrix_to_rpy
+from shared.spatial import invert, log_so3, matrix_to_rpy
 
 log = logging.getLogger(__name__)
 
@@ -175,12 +187,19 @@ class GeneratorSettings:
     deg_decimals: int = 3
     """Generated angles (joint targets, roll-pitch-yaw) are rounded to this many decimals of a
     degree (0.001 deg: 0.01 mm at 0.6 m)."""
+    merge_tolerance: float = 0.002
+    """m: a DRAW/MOVES continues the previous one when the previous target lies within this of
+    the straight line from the previous start to the new target (and between them)."""
+    merge_angle: float = math.radians(2.0)
+    """rad: the same for orientations (ROTATE/MOVES: the previous orientation within this of the
+    turn from the previous start to the new one) and for joint vectors (MOVE)."""
 
     def __post_init__(self) -> None:
         for name in (
             "velocity_window", "joint_departure", "linear_departure", "angular_departure",
             "joint_noise_floor", "linear_noise_floor", "angular_noise_floor",
             "min_joint_change", "min_translation", "min_rotation", "max_segment_rotation",
+            "merge_tolerance", "merge_angle",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -213,6 +232,42 @@ class GeneratedSegment:
     mode: JogMode
     reason: str  # "departure", "stop", "rotation", "mode", "flush"
     statement: Statement | None
+
+
+@dataclass(frozen=True)
+class Generated:
+    """A generated statement, and whether it continues the statement generated just before it
+    (same kind and frame, the same line or joint onward): then it replaces that statement, whose
+    start it shares, instead of following it."""
+
+    statement: Statement
+    continues: bool = False
+
+
+def merged(generated: Iterable[Generated]) -> list[Statement]:
+    """The program that generated statements make: a continuing statement replaces the one
+    before it."""
+    out: list[Statement] = []
+    for g in generated:
+        if g.continues and out:
+            out[-1] = g.statement
+        else:
+            out.append(g.statement)
+    return out
+
+
+def _between_on_line(start: np.ndarray, middle: np.ndarray, end: np.ndarray, tolerance: float) -> bool:
+    """``middle`` lies within ``tolerance`` of the straight segment from ``start`` to ``end``,
+    strictly after ``start`` and before ``end`` along it (the motion went on the same way)."""
+    d = end - start
+    length = _norm(d)
+    if length <= 0.0:
+        return False
+    u = d / length
+    along = float((middle - start) @ u)
+    if along <= 0.0 or along >= length:
+        return False
+    return _norm(middle - start - along * u) <= tolerance
 
 
 @dataclass
@@ -320,6 +375,7 @@ class ProgramGenerator:
         self._anchor_q: np.ndarray | None = None
         self._anchor_p: np.ndarray | None = None
         self._anchor_r: np.ndarray | None = None
+        self._forget_previous()
 
     # -- frames --------------------------------------------------------------------------------
     def _prepare_frames(self) -> None:
@@ -335,6 +391,37 @@ class ProgramGenerator:
         else:  # WORK
             self._out_T_world = None if ww is None else invert(ww)
             self._out_T_base = None if (ww is None or wb is None) else invert(ww) @ wb
+
+    def set_frame(self, frame: Frame | str) -> list[Generated]:
+        """Write the Cartesian targets of the next statements in ``frame`` (BASE, WORLD or WORK):
+        the open segment closes first (its statement is in the old frame, and returned), and the
+        program state is re-expressed in the new one. Needs ``world_T_base`` (and
+        ``world_T_work`` for WORK)."""
+        settings = dataclasses.replace(self.settings, frame=frame)  # checks the name
+        if settings.frame is self.settings.frame:
+            return []
+        old = (self.settings, self._out_T_world, self._out_T_base)
+        self.settings = settings
+        self._prepare_frames()
+        last = self._last if self._last is not None and self._last.p is not None else None
+        if (last is not None or self._anchor_p is not None) and (old[1] is None or self._out_T_world is None):
+            self.settings, self._out_T_world, self._out_T_base = old
+            raise InputError(f"cannot write generated targets in {settings.frame.value}: give the generator world_T_base and world_T_work")
+        self.settings, self._out_T_world, self._out_T_base = old
+        out = self.finish()  # in the old frame
+        old_T_world = self._out_T_world
+        self.settings = settings
+        self._prepare_frames()
+        if last is not None or self._anchor_p is not None:
+            new_T_old = self._out_T_world @ invert(old_T_world)
+            rot, shift = new_T_old[:3, :3], new_T_old[:3, 3]
+            if last is not None:  # the window is dropped below; the last state stays for the next sample
+                last.p, last.r = rot @ last.p + shift, rot @ last.r
+            if self._anchor_p is not None:
+                self._anchor_p, self._anchor_r = rot @ self._anchor_p + shift, rot @ self._anchor_r
+        self._reset_motion()
+        self._forget_previous()
+        return out
 
     def _out_T_tool(self, sample: RobotSample) -> np.ndarray:
         if sample.base_T_tool is not None and self._out_T_base is not None:
@@ -377,8 +464,14 @@ class ProgramGenerator:
         self._last = None
         self._mode = None
         self._anchor_q = self._anchor_p = self._anchor_r = None
+        self._forget_previous()
         if sample is not None:
             self.feed(sample)
+
+    def _forget_previous(self) -> None:
+        """The next statement continues nothing (a re-anchoring, a mode or frame change)."""
+        self._previous: Statement | None = None
+        self._previous_start: tuple[np.ndarray, np.ndarray | None, np.ndarray | None] | None = None
 
     # -- velocities ----------------------------------------------------------------------------
     def _velocity(self, old: _State, new: _State) -> np.ndarray:
@@ -465,6 +558,10 @@ class ProgramGenerator:
     # -- the push API ----------------------------------------------------------------------------
     def feed(self, sample: RobotSample) -> list[Statement]:
         """Take the next state of the virtual robot; return statements of segments that closed."""
+        return [g.statement for g in self.push(sample)]
+
+    def push(self, sample: RobotSample) -> list[Generated]:
+        """As :meth:`feed`, each statement with whether it continues the one before it."""
         if not isinstance(sample, RobotSample):
             raise InputError(f"feed() takes a RobotSample, got {type(sample).__name__}")
         if self._dof is None:
@@ -473,11 +570,12 @@ class ProgramGenerator:
             raise InputError(f"sample at t={sample.t:.3f} s has {sample.q.size} joints, the stream has {self._dof}")
         if self._last is not None and sample.t <= self._last.t:
             raise InputError(f"sample time {sample.t:.6f} s does not follow the previous one ({self._last.t:.6f} s)")
-        out: list[Statement] = []
+        out: list[Generated] = []
         if self._mode is not None and sample.mode is not self._mode:
             out.extend(self._close(self._last, "mode"))
             self._reset_motion()
             self._anchor_q = self._anchor_p = self._anchor_r = None
+            self._forget_previous()
         self._mode = sample.mode
         state = self._state(sample)
         self._last = state
@@ -533,6 +631,11 @@ class ProgramGenerator:
     def flush(self) -> list[Statement]:
         """Close the open segment at the last sample (and emit any change that built up while
         standing still); the generator stays anchored there and may be fed on."""
+        return [g.statement for g in self.finish()]
+
+    def finish(self) -> list[Generated]:
+        """As :meth:`flush`, each statement with whether it continues the one before it (a
+        later stroke may continue the last statement of an earlier one)."""
         if self._last is None:
             return []
         out = self._close(self._last, "flush")
@@ -548,6 +651,15 @@ class ProgramGenerator:
         out.extend(self.flush())
         return out
 
+    def generate_merged(self, samples: Iterable[RobotSample]) -> list[Statement]:
+        """As :meth:`generate`, with continuing statements merged into the one before (what the
+        console's program gets)."""
+        generated: list[Generated] = []
+        for sample in samples:
+            generated.extend(self.push(sample))
+        generated.extend(self.finish())
+        return merged(generated)
+
     # -- segments ----------------------------------------------------------------------------------
     def _onset_index(self) -> int:
         ts, xs, _ = self._scaled_window()
@@ -560,20 +672,54 @@ class ProgramGenerator:
         self._v_hist.clear()
         log.debug("segment starts at t=%.3f s (%s)", self._t_start, why)
 
-    def _close(self, end: _State | None, reason: str, t_end: float | None = None) -> list[Statement]:
+    def _close(self, end: _State | None, reason: str, t_end: float | None = None) -> list[Generated]:
         """Close the open segment at state ``end`` (``t_end``: when the motion ended, if not
         at that state's time) and match it to a statement."""
         if end is None or self._anchor_q is None:
             return []
         t_end = end.t if t_end is None else t_end
         t_start = self._t_start if self._active else t_end
+        start = (self._anchor_q.copy(), self._copy(self._anchor_p), self._copy(self._anchor_r))
         statement = self._match(end)
         if not self._active and statement is None:
             return []
         self.segments.append(GeneratedSegment(t_start, t_end, self._mode, reason, statement))
-        if statement is not None:
-            log.debug("segment %.3f-%.3f s closed (%s): %s", t_start, t_end, reason, statement.kind)
-        return [] if statement is None else [statement]
+        if statement is None:
+            return []
+        continues = self._continues(statement, start)
+        log.debug("segment %.3f-%.3f s closed (%s): %s%s", t_start, t_end, reason, statement.kind, " (continues)" if continues else "")
+        if not continues:
+            self._previous_start = start
+        self._previous = statement
+        return [Generated(statement, continues)]
+
+    @staticmethod
+    def _copy(value: np.ndarray | None) -> np.ndarray | None:
+        return None if value is None else value.copy()
+
+    def _continues(self, statement: Statement, middle: tuple[np.ndarray, np.ndarray | None, np.ndarray | None]) -> bool:
+        """Does ``statement`` (just matched: the anchors are its end; ``middle`` is where it
+        starts, the previous statement's end) go on the way the previous statement went from
+        where that one started?"""
+        prev, start = self._previous, self._previous_start
+        if prev is None or start is None or prev.kind != statement.kind or getattr(prev, "frame", None) != getattr(statement, "frame", None):
+            return False
+        s = self.settings
+        (q0, p0, r0), (q1, p1, r1) = start, middle
+        if isinstance(statement, Drive):
+            return statement.joint == prev.joint
+        if isinstance(statement, Move):
+            return _between_on_line(q0, q1, self._anchor_q, s.merge_angle)
+        if p0 is None or p1 is None or r0 is None or r1 is None:
+            return False
+        if isinstance(statement, (Draw, Moves)) and not _between_on_line(p0, p1, self._anchor_p, s.merge_tolerance):
+            return False
+        if isinstance(statement, (Rotate, Moves)):
+            total = log_so3(self._anchor_r @ r0.T)
+            if _norm(total) > s.max_segment_rotation:
+                return False
+            return _between_on_line(np.zeros(3), log_so3(r1 @ r0.T), total, s.merge_angle)
+        return True
 
     def _angle_text(self, value: float) -> float:
         """An angle (rad) rounded to the degrees the statement text shows (no negative zero)."""
@@ -620,6 +766,9 @@ def generate_program(
     *,
     world_T_base: np.ndarray | None = None,
     world_T_work: np.ndarray | None = None,
+    merge: bool = False,
 ) -> list[Statement]:
-    """Statements for a whole recorded stream (a fresh generator, fed and flushed)."""
-    return ProgramGenerator(settings, world_T_base=world_T_base, world_T_work=world_T_work).generate(samples)
+    """Statements for a whole recorded stream (a fresh generator, fed and flushed); with
+    ``merge`` continuing statements replace the one before (``ProgramGenerator.generate_merged``)."""
+    gen = ProgramGenerator(settings, world_T_base=world_T_base, world_T_work=world_T_work)
+    return gen.generate_merged(samples) if merge else gen.generate(samples)

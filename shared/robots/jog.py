@@ -3,7 +3,9 @@
 Four choices combine: the moving part (a joint, or the tool), the frame (world, base, work,
 tool), the direction constraint (one axis or one plane) and the kind of motion (translate or
 rotate). Rules: a joint only turns about its own z axis; the tool may move in any frame, along
-any axis or plane, translating or rotating. Joint limits and singularities stop the motion
+any axis or plane, translating or rotating. Rotating about an axis turns about that axis;
+rotating in a plane turns within it, about the plane's normal (the xy plane: about z), which is
+the one ring a gizmo shows for that plane. Joint limits and singularities stop the motion
 with a reason; the arm never jumps to another configuration.
 """
 
@@ -62,6 +64,13 @@ def _axis_mask(constraint: str) -> np.ndarray:
     if constraint not in CONSTRAINTS:
         raise UnknownNameError("direction constraint", constraint, CONSTRAINTS)
     return np.array([c in constraint for c in "xyz"], dtype=float)
+
+
+def rotation_axis_mask(constraint: str) -> np.ndarray:
+    """The axes a rotation under ``constraint`` may turn about: the axis itself, or a plane's
+    normal (a turn within the plane)."""
+    mask = _axis_mask(constraint)
+    return mask if len(constraint) == 1 else 1.0 - mask
 
 
 def world_T_tcp(robot: Robot, q: np.ndarray, frames: JogFrames) -> np.ndarray:
@@ -142,11 +151,12 @@ def jog_tool(
 ) -> JogResult:
     """Move the tool point by ``displacement`` given in ``frame``'s axes: metres for
     ``translate``, a rotation vector (rad) about the tool point for ``rotate``. Components
-    outside the constraint's axis or plane are dropped."""
+    outside the constraint's axis or plane are dropped (for ``rotate``: all but the axis, or the
+    plane's normal)."""
     q = robot.as_q(q)
     if motion not in MOTIONS:
         raise UnknownNameError("motion", motion, MOTIONS)
-    mask = _axis_mask(constraint)
+    mask = _axis_mask(constraint) if motion == "translate" else rotation_axis_mask(constraint)
     now = world_T_tcp(robot, q, frames)
     world_R_frame = frame_rotation(frame, frames, now)
     d_world = world_R_frame @ (mask * np.asarray(displacement, dtype=float))

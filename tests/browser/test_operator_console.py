@@ -54,7 +54,7 @@ def entries(ui: ConsolePage) -> list[dict]:
 def test_drag_gizmo_moves_the_tool_and_statements_appear(ui: ConsolePage) -> None:
     # first in the module: the camera still looks at the tool where the console started
     ui.tab("Program")
-    ui.page.get_by_label("Automatic generation", exact=True).click()
+    assert ui.page.get_by_label("Automatic generation", exact=True).is_checked()  # on from the start (issue 16)
     wait_for(lambda: ui.session()["program"]["auto_generate"], what="automatic generation on")
     before = ui.session()["arm"]["tool_xyz_mm"]
     after = ui.drag_gizmo_x(60)

@@ -162,7 +162,7 @@ def test_single_step_says_one_statement_with_its_end_condition(session: Session,
     assert first.ready and first.blocker is None and refusal_of_submit(session, 0, 1) is None
     session.modes.set_regime_override(Regime.FREE)
     free = session.readiness.view(0, 1)
-    assert free.ready and free.line == "Ready to send 1 (ONLINE: statements go as they are)"
+    assert free.ready and free.line == "Ready to send 1 (ONLINE: statements go as they are; drags stream to the robot as you drive)"
     assert refusal_of_submit(session, 0, 1) is None
 
 

@@ -67,6 +67,7 @@ def test_generation_follows_the_arm_and_flushes_on_release(session: Session, clo
 
 
 def test_auto_generation_off_adds_nothing(session: Session, clock) -> None:
+    session.program.set_auto_generate(False)  # on by default (issue 16)
     _stroke(session, clock, 0.03)
     assert session.arm.release().empty_index == 0
 
