@@ -20,7 +20,7 @@ import numpy as np
 
 from shared.spatial import invert
 
-SEAT_LATERAL_M = 0.005
+SEAT_LATERAL_M = 0.002
 """How far (m) across a feature's axis an object may stand from its seat and still be seated."""
 SEAT_AXIAL_M = 0.003
 """How far (m) along the feature's axis (deeper or higher) an object may stand from its seat."""

@@ -66,10 +66,11 @@ class CellCollision:
 
     def _skip(self, held: str | None, object_poses: Mapping[str, np.ndarray] | None = None) -> list[tuple[str, str]]:
         """Pairs left out: the held object and the gripper's link, and the resting contacts of
-        every moved object that stands seated in a feature (see the module docstring)."""
+        every moved object that stands seated in a feature, held or not (the gripper still on
+        the peg it seated; see the module docstring)."""
         skip = [(held, self.tool_body)] if held else []
         for name, world_T in (object_poses or {}).items():
-            if name == held or not any(name in pair for pair in self.scene.resting_pairs):
+            if not any(name in pair for pair in self.scene.resting_pairs):
                 continue
             if seated_feature(self.cell, name, world_T) is not None:
                 skip += [tuple(sorted(pair)) for pair in self.scene.resting_pairs if name in pair]
