@@ -88,7 +88,7 @@ class RunningConsole:
         return httpx.request(method, self.url + path, timeout=10.0, **kwargs)
 
 
-def start_console(tmp_path: Path, *extra: str) -> RunningConsole:
+def start_console(tmp_path: Path, *extra: str, timeout: float = 60.0) -> RunningConsole:
     port = free_port()
     log_path = tmp_path / "console.log"
     log = log_path.open("w")
@@ -97,7 +97,7 @@ def start_console(tmp_path: Path, *extra: str) -> RunningConsole:
         stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
-        wait_http(f"http://127.0.0.1:{port}/api/health", proc)
+        wait_http(f"http://127.0.0.1:{port}/api/health", proc, timeout=timeout)
     except Exception:
         proc.kill()
         raise RuntimeError(f"console did not start:\n{log_path.read_text()}") from None
