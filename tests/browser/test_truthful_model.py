@@ -45,6 +45,7 @@ def truth_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningC
 @pytest.fixture(scope="module")
 def ui(truth_console: RunningConsole, chromium) -> Iterator[ConsolePage]:
     context = chromium.new_context(viewport={"width": 1400, "height": 900})
+    context.set_default_timeout(90_000)  # software WebGL on a loaded machine: a click may wait for frames
     page = ConsolePage(context.new_page(), truth_console, quick_clicks=True)
     try:
         page.open()
