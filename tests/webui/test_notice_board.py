@@ -3,9 +3,9 @@ The page's own checks are in ``tests/browser/test_truthful_model.py``; these are
 
 from __future__ import annotations
 
+from shared.errors import InputError
 from webui.actions import Actions
 from webui.notice_log import LOG_SIZE, RECOVERY, NoticeBoard, action_kind, session_kind
-from shared.errors import InputError
 
 
 def _board() -> NoticeBoard:
