@@ -9,7 +9,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
@@ -118,7 +118,7 @@ class ServerProcess:
     """A ``teleprog <command>`` server as a real process on a fixed port, so a test can kill it
     (SIGKILL: nothing said goodbye, whatever was in flight is gone) and start it again."""
 
-    def __init__(self, tmp_path: Path, command: str, *args: str, port: int | None = None, timeout: float = 60.0) -> None:
+    def __init__(self, tmp_path: Path, command: str, *args: str, port: int | None = None, timeout: float = 120.0) -> None:
         self.port = port or free_port()
         self.command = command
         self.args = args

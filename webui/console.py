@@ -47,8 +47,10 @@ from server.console import (
 )
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
+from webui.legend import Legend
 from webui.locate_panel import LocatePanel
 from webui.monitor_panel import MonitorPanel
+from webui.notice_log import NoticeBoard
 from webui.overlays import CollisionOverlay, PredictedPath
 from webui.panels import DrivePanel
 from webui.preview_panel import PreviewPanel
@@ -244,18 +246,20 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
     path = PredictedPath(server)
     collision = CollisionOverlay(server, scene.body_meshes, scene.body_nodes, scene.tcp_node)
     holder: dict[str, StatusBar] = {}
-    actions = Actions(lambda level, message, rule: holder["status"].show_notice(level, message, rule))
+    board = NoticeBoard(on_change=lambda: holder["status"].render_notices() if "status" in holder else None)
+    actions = Actions(lambda level, message, rule: holder["status"].show_notice(level, message, rule), board=board)
     # the header: a panel of its own docked above the control panel, so STOP never scrolls away
     header = server.gui.add_panel()
     with header.add_tab("Robot", viser.Icon.ROBOT):
         stop = StopHeader(server, session, actions)
         banner = RegimeBanner(server, robot=session.dispatch.connected)  # the regime, in colour, under STOP
-        status = holder["status"] = StatusBar(server, session, actions)
+        status = holder["status"] = StatusBar(server, session, actions, board=board)
     tabs = server.gui.add_tab_group()
     with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
         drive = DrivePanel(server, session, scene, actions)
         stream = StreamIndicator(server.gui)  # while a drag runs on the robot, it says so here
         stream.watch(drive.gizmo)
+        Legend(server, session.robot)
         if LocatePanel.wanted(session):
             LocatePanel(server, session, actions)
     with tabs.add_tab("Program", viser.Icon.LIST_NUMBERS):

@@ -15,8 +15,10 @@ from shared.robots.model import Robot
 from shared.robots.shapes import link_meshes
 from webui.scene_util import place
 
-GHOST_COLOR = (120, 170, 255)
-GHOST_OPACITY = 0.35
+# green, far from the virtual arm's greys and from the path's orange and the collision red (the
+# pale blue it had read as the solid arm's grey through 35 % opacity); the legend names it
+GHOST_COLOR = (20, 190, 110)
+GHOST_OPACITY = 0.4
 
 
 def age_text(age_s: float | None) -> str:

@@ -39,7 +39,9 @@ def warnings_markdown(view: PreviewView) -> str:
     if len(view.warnings) > 8:
         lines.append(f"... and {len(view.warnings) - 8} more warnings")
     if not view.warnings and not view.refusal:
-        lines.append("No warnings.")
+        # one answer, never two: a pose that touches something now is not "no warnings"
+        lines.append("No warnings along the range's path; the pose shown touches something." if view.colliding_now
+                     else "No warnings.")
     return "  \n".join(lines)
 
 

@@ -21,6 +21,15 @@ from webui.scene_util import colored, place
 FRAME_AXES = ("world", "base", "work", "tool")
 
 
+def arm_colour(robot) -> tuple[int, int, int]:
+    """The colour the virtual arm is drawn in: its robot file's colour of most of its links
+    (the legend shows it next to the ghost's)."""
+    colours = [tuple(shapes[0].color) for shapes in robot.shapes.values() if shapes]
+    if not colours:
+        return (200, 200, 200)
+    return max(set(colours), key=colours.count)
+
+
 class CellScene:
     """The cell and the virtual arm in a viser scene."""
 

@@ -23,6 +23,7 @@ from server.console import (
     Session,
 )
 from webui.actions import Actions
+from webui.notice_log import NoticeBoard, session_kind
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +63,7 @@ def regime_text(view: RegimeView) -> str:
 class StatusBar:
     """Recovery, link, regime and mode selectors, divergence, notices."""
 
-    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions, board: NoticeBoard | None = None) -> None:
         self.server = server
         self.session = session
         self.actions = actions
@@ -81,6 +82,9 @@ class StatusBar:
                                      hint="put the virtual arm and moved objects where the robot reports them")
         self.resync.on_click(lambda _: self.actions.run("re-sync", self.session.resync))
         self.notice = gui.add_markdown("")
+        self.board = board if board is not None else NoticeBoard()
+        with gui.add_folder("Notice log", expand_by_default=False):
+            self.log = gui.add_html(self.board.log_html())
         self._setting = False  # True while we write a selector ourselves (no echo to the session)
 
     # -- clicks -------------------------------------------------------------------------------
@@ -105,6 +109,7 @@ class StatusBar:
     # -- session events -----------------------------------------------------------------------
     def show_link(self, link: LinkView) -> None:
         self.link.content = link_text(link)
+        self.board.robot_state(link.robot_state if link.connected else None)
 
     def show_regime(self, view: RegimeView) -> None:
         self.regime_line.content = regime_text(view)
@@ -135,11 +140,18 @@ class StatusBar:
         self.resync.visible = view.diverged
 
     def show_notice(self, level: str, message: str, rule: str | None = None) -> None:
-        mark = {"error": "Refused" if rule else "Error", "warning": "Warning", "info": "Note"}.get(level, level)
-        text = f"**{mark}:** {message}"
-        if rule:
-            text += f" (rule `{rule}`)"
-        self.notice.content = text
+        """A notice the session said (or a caller without a kind): it stands until its kind's
+        condition ends (``webui.notice_log``)."""
+        self.board.post(level, message, rule, session_kind(level, message), refused=level == "error" and rule is not None)
 
     def show_notice_event(self, notice: Notice) -> None:
         self.show_notice(notice.level, notice.message, notice.rule)
+
+    def render_notices(self) -> None:
+        """Draw the standing notice and the log from the board (after every change of it)."""
+        line = self.board.line_markdown()
+        if self.notice.content != line:
+            self.notice.content = line
+        shown = self.board.log_html()
+        if self.log.content != shown:
+            self.log.content = shown

@@ -3,7 +3,8 @@ its own docked above the control panel, so it never scrolls away with the progra
 fixed header; a standalone panel is its own scroll region).
 
 Pressing STOP shows at once "STOP sent, arrives in about N s" (N: the link's measured one-way
-delay), and the robot's confirmation when its answer is back. The state line is coloured: red
+delay), and the robot's confirmation when its answer is back; that line stands while the robot
+rests after it (stopped, at fault, idle) and goes once the robot runs again. The state line is coloured: red
 for a fault or a lost link, amber for stopped. After a contact fault it offers "Back away".
 """
 
@@ -93,9 +94,12 @@ class StopHeader:
         self._sent_at: float | None = None  # when the STOP we wait for left (clock)
         self._seen_pending = False
         self._answer = ""  # the robot's answer to it, from the notice
+        self._answered = False  # the answer is shown and stands until the robot runs again
+        self._rested = False  # the robot was seen at rest since the answer
 
     def press_stop(self) -> None:
         self._sent_at, self._seen_pending, self._answer = self._clock(), False, ""
+        self._answered = self._rested = False
         link = self.actions.run("stop", self.session.recovery.stop)
         if link is None:  # refused (no robot): the notice line says why
             self._sent_at = None
@@ -111,6 +115,8 @@ class StopHeader:
         if self.back_away.visible != fault:
             self.back_away.visible = fault
         if self._sent_at is None:
+            if self._answered:
+                self._clear_answer_when_running(link)
             return
         if "stop" in link.recovery_pending:
             self._seen_pending = True
@@ -118,6 +124,18 @@ class StopHeader:
         if self._seen_pending:  # its answer is back
             self.ack.content = stop_answer_text(self._answer, self._clock() - self._sent_at, link)
             self._sent_at = None
+            self._answered, self._rested = True, False
+            self._clear_answer_when_running(link)
+
+    def _clear_answer_when_running(self, link: LinkView) -> None:
+        """The answer to STOP describes a robot at rest: once the robot has been seen at rest
+        after it and runs again, the answer is over (the notice log keeps it)."""
+        state = link.robot_state if link.connected else None
+        if state in ("stopped", "fault", "idle"):
+            self._rested = True
+        elif state == "running" and self._rested:
+            self.ack.content = ""
+            self._answered = False
 
     def show_notice(self, notice: Notice) -> None:
         """Keep the robot's answer to the STOP we wait for (the session says it in a notice)."""

@@ -6,6 +6,16 @@ of the arm (``shared.collision.cell_check``).
 Every change is atomic under the session lock (two callers on different threads never lose each
 other's step), is offered to the program desk as a sample of the operator's stroke (automatic
 generation), and is published: the fast path for the 3D scene, then typed events.
+
+Where the arm stands between strokes (:meth:`VirtualArm.follow_start`): the virtual arm shows
+where the program starts plus what the operator has added. So when statements leave for the
+robot and after every report that finishes one, the arm is put at the program's start state (the
+predicted end of what was sent, or the robot's state after a re-sync) and the held object rides
+along, provided the program is empty, no preview runs and no stroke is open (between the first
+move of a drag or slider and its release). When the operator has been driving ahead, the program
+has statements and the arm stands at their end: it is left there. A pose driven without
+generation and not written into the program is not the program's: the next report puts the arm
+back at the start.
 """
 
 from __future__ import annotations
@@ -62,6 +72,7 @@ class VirtualArm:
         self._data = collision.new_data()
         self._report: CellReport | None = None
         self._view: CollisionView | None = None
+        self._stroke_open = False  # between the first move of a stroke and its release
         with ctx.lock:
             self.refresh()
 
@@ -163,7 +174,11 @@ class VirtualArm:
 
     def release(self, *, client: Caller | str | None = None):
         """The operator let go of the gizmo or slider: the program desk closes the open
-        generated segment. Returns the program view."""
+        generated segment (the stroke is closed first: what it streams may put the arm at the
+        start, see :meth:`follow_start`). Returns the program view."""
+        with self._ctx.lock:
+            self._control.check(client)
+            self._stroke_open = False
         return self._desk.end_stroke(client=client)
 
     def _apply(self, step: Step, mode: JogMode, client: Caller | str | None, frame: str | None = None) -> VirtualState:
@@ -175,6 +190,7 @@ class VirtualArm:
             if busy is not None:
                 raise ConflictError(f"cannot drive the arm while statements {busy[0] + 1}..{busy[1]} are being previewed; end the preview first")
             before = self._state
+            self._stroke_open = True
             out = step(before.q)
             result = out if isinstance(out, JogResult) else None
             q = out.q if isinstance(out, JogResult) else out
@@ -191,6 +207,21 @@ class VirtualArm:
         """Stand the arm at ``q`` without a stroke (a re-sync; under the lock); the events."""
         self._state = VirtualState(q.copy(), world_T_tcp(self.robot, q, self._ctx.frames), None, self._state.version + 1)
         return self.refresh()
+
+    def follow_start(self) -> bool:
+        """Put the arm at the program's start state when nothing of the operator's stands
+        between (see the module docstring): the program is empty, no preview runs, no stroke
+        is open. Publishes the change; True when the arm moved or its objects were redrawn."""
+        with self._ctx.lock:
+            if self._stroke_open or self._preview.running_range() is not None or self._desk.editor.state.statements:
+                return False
+            q = self._desk.start.q
+            if np.array_equal(q, self._state.q):
+                return False
+            events = self.put(q)
+        self.publish_state()
+        self._ctx.bus.emit(events)
+        return True
 
     def publish_state(self) -> None:
         """The fast path after :meth:`put` (outside the lock)."""

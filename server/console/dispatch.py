@@ -222,6 +222,7 @@ class Dispatch:
         asyncio.run_coroutine_threadsafe(self.send(robot, comm, statements), loop)
         view = self.view()
         self._ctx.bus.emit([SentChanged(sent=view), ProgramChanged(program=self._desk.view()), *arm_events])
+        self._arm.follow_start()  # an emptied program: the arm stands where what was sent ends
         self.remote.refresh_predicted()
         return view
 
@@ -439,7 +440,7 @@ class Dispatch:
             final = s.final
         self._ctx.bus.emit([SentChanged(sent=self.view())])
         if final:
-            for follow_up in (self.remote.refresh_predicted, self.remote.check_divergence):
+            for follow_up in (self._arm.follow_start, self.remote.refresh_predicted, self.remote.check_divergence):
                 try:
                     follow_up()
                 except Exception:  # noqa: BLE001 - the report is taken; a derived view must not undo that

@@ -5,6 +5,11 @@ Objects start at their cell pose. A grasp fixes the held object to the tool poin
 so it rides with the arm; a release (or an insertion) leaves it where the tool put it. Task
 calls name the object case-insensitively (``GRASP(peg)``): ``apply_task`` reads grasp*,
 release* and insert* tasks (thesis §4.3.4's task vocabulary), the way the telerobot does.
+
+Seated objects: an object that stands in a feature the way it stood at load (the peg on the floor
+of HOLE1) touches its support by design. :func:`seated_feature` says where an object pose is
+seated so, and the collision checks leave its resting contacts out (``shared.collision.cell_check``):
+a peg inserted in HOLE2 is not a collision with the plate the operator must see.
 """
 
 from __future__ import annotations
@@ -14,6 +19,45 @@ from collections.abc import Mapping
 import numpy as np
 
 from shared.spatial import invert
+
+SEAT_LATERAL_M = 0.002
+"""How far (m) across a feature's axis an object may stand from its seat and still be seated."""
+SEAT_AXIAL_M = 0.003
+"""How far (m) along the feature's axis (deeper or higher) an object may stand from its seat."""
+SEAT_TILT_COS = float(np.cos(np.radians(5.0)))
+"""The object's axes may tilt at most 5 deg from how it stood at load (cosine of that)."""
+
+
+def _load_seat(cell, name: str):
+    """The feature an object stands in at load (the nearest to its origin) and where it stands
+    in that feature's frame, or None when the cell has no features."""
+    if not cell.features:
+        return None
+    world_T_obj = np.asarray(cell.object(name).world_T_object, dtype=float)
+    feature = min(cell.features.values(), key=lambda f: float(np.linalg.norm(f.world_T_feature[:3, 3] - world_T_obj[:3, 3])))
+    return feature.name, invert(np.asarray(feature.world_T_feature, dtype=float)) @ world_T_obj
+
+
+def seated_feature(cell, name: str, world_T_object: np.ndarray) -> str | None:
+    """The feature in which ``name`` at ``world_T_object`` stands as it stood in its own at load
+    (same offset along and across the feature's axis within ``SEAT_*``, not tilted), or None. A
+    square peg turned about the hole's axis is still seated: only the axis is compared."""
+    if name not in cell.object_names:
+        return None
+    seat = _load_seat(cell, name)
+    if seat is None:
+        return None
+    _, feature_T_obj = seat
+    pose = np.asarray(world_T_object, dtype=float)
+    for feature in cell.features.values():
+        world_T_f = np.asarray(feature.world_T_feature, dtype=float)
+        here = invert(world_T_f) @ pose
+        offset = here[:3, 3] - feature_T_obj[:3, 3]
+        if abs(offset[2]) > SEAT_AXIAL_M or float(np.hypot(offset[0], offset[1])) > SEAT_LATERAL_M:
+            continue
+        if float(np.dot(here[:3, 2], feature_T_obj[:3, 2])) >= SEAT_TILT_COS:
+            return feature.name
+    return None
 
 
 class ObjectWorld:

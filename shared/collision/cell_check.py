@@ -5,7 +5,9 @@ cell, the ground (``shared.terrain.ground``), merged into one answer for an arm 
 (touching pairs and their triangles, the nearest pair, the control zone and who sets it);
 ``CellCollision.touching`` is the cheap answer a plan's samples need (touching pairs only).
 A held object rides with the gripper: it counts as tool, and its contact with the gripper's link
-is not a collision.
+is not a collision. An object moved and set down seated in a feature as it stood at load (the peg
+inserted in HOLE2, ``shared.cells.object_world.seated_feature``) keeps its resting contacts out of
+the check, as it had them out at load: touching its support there is by design, not a collision.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shared.cells.object_world import seated_feature
 from shared.collision.scene import CollisionReport, SceneData, SceneModel
 from shared.collision.zones import Zone, zone
 
@@ -61,8 +64,17 @@ class CellCollision:
     def new_data(self) -> SceneData:
         return self.scene.new_data()
 
-    def _skip(self, held: str | None) -> list[tuple[str, str]]:
-        return [(held, self.tool_body)] if held else []
+    def _skip(self, held: str | None, object_poses: Mapping[str, np.ndarray] | None = None) -> list[tuple[str, str]]:
+        """Pairs left out: the held object and the gripper's link, and the resting contacts of
+        every moved object that stands seated in a feature, held or not (the gripper still on
+        the peg it seated; see the module docstring)."""
+        skip = [(held, self.tool_body)] if held else []
+        for name, world_T in (object_poses or {}).items():
+            if not any(name in pair for pair in self.scene.resting_pairs):
+                continue
+            if seated_feature(self.cell, name, world_T) is not None:
+                skip += [tuple(sorted(pair)) for pair in self.scene.resting_pairs if name in pair]
+        return skip
 
     def check(self, q: np.ndarray, *, object_poses: Mapping[str, np.ndarray] | None = None, held: str | None = None,
               data: SceneData | None = None) -> CellReport:
@@ -71,7 +83,7 @@ class CellCollision:
         ground's; at equal rank the nearer one sets it)."""
         poses = dict(object_poses) if object_poses else None
         tools = [self.tool_body, *([held] if held else [])]
-        report = self.scene.check(q, object_poses=poses, distances=tools, skip=self._skip(held), data=data)
+        report = self.scene.check(q, object_poses=poses, distances=tools, skip=self._skip(held, poses), data=data)
         zs = zone(self.scene, self.cell, q, held=[held] if held else (), object_poses=poses, report=report)
         bodies = {n for p in report.pairs for n in (p.a, p.b)}
         nearest = report.nearest
@@ -103,8 +115,9 @@ class CellCollision:
                  data: SceneData | None = None, triangles: bool = False) -> tuple[tuple[tuple[str, str], ...], CollisionReport]:
         """The touching pairs at ``q`` (scene and ground), without distances, and the scene's
         report (for its triangles when ``triangles``)."""
-        report = self.scene.check(q, object_poses=dict(object_poses) if object_poses else None, distances="none",
-                                  skip=self._skip(held), triangles=triangles, data=data)
+        poses = dict(object_poses) if object_poses else None
+        report = self.scene.check(q, object_poses=poses, distances="none",
+                                  skip=self._skip(held, poses), triangles=triangles, data=data)
         pairs = [(p.a, p.b) for p in report.pairs]
         if self.ground is not None:
             pairs += [(link, self.ground.NAME) for link in self.ground.touches(q)]
