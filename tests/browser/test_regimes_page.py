@@ -98,9 +98,9 @@ def banner_becomes(ui: ConsolePage, regime: str, source: str) -> dict[str, str]:
                     timeout=30.0, what=f"banner {regime} ({source}); shown: {banner(ui)}")
 
 
-def generation_on(ui: ConsolePage) -> None:
-    """Switch automatic generation on with its checkbox, wherever the page keeps it."""
-    if ui.session()["program"]["auto_generate"]:
+def generation_on(ui: ConsolePage, on: bool = True) -> None:
+    """Switch automatic generation on (or off) with its checkbox, wherever the page keeps it."""
+    if ui.session()["program"]["auto_generate"] == on:
         return
     for tab in ("Drive", "Program"):
         ui.tab(tab)
@@ -108,13 +108,14 @@ def generation_on(ui: ConsolePage) -> None:
         if box.count() and box.first.is_visible():
             ui.press(box.first)  # quick_clicks: once visible (the panel re-renders as the link line ticks)
             break
-    wait_for(lambda: ui.session()["program"]["auto_generate"], what="automatic generation on")
+    wait_for(lambda: ui.session()["program"]["auto_generate"] == on, what=f"automatic generation {'on' if on else 'off'}")
 
 
 def test_the_banner_names_the_regime_what_it_does_and_who_chose_it(ui: ConsolePage) -> None:
     zone = ui.session()["regime"]["zone"]
     first = banner_becomes(ui, zone, "zone")
     assert "set by the zone" in first["text"]
+    generation_on(ui, False)  # on from the start; off, the ONLINE banner says drags send nothing
     seen = {}
     for regime, words in (("operation", "SINGLE STEP (operation): one statement with its end condition"),
                           ("quasi", "OFFLINE (quasi-operation): preview, then send"),

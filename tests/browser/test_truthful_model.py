@@ -132,7 +132,7 @@ def test_a_refused_submit_goes_with_the_next_good_one_and_the_log_keeps_both(ui:
     ui.submit_range(1, 1)
     wait_for(lambda: "submit refused" in ui.notice(), what="quasi-operation refusing an unpreviewed submit")
     choose_regime(ui, "free")
-    ui.text_appears(r"Regime: \**free")
+    ui.text_appears(r"Regime: \**ONLINE")
     assert "submit refused" in ui.notice()  # choosing a regime is no submit
     before = _sent_count(ui)
     ui.click("Submit range")
