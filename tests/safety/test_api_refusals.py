@@ -50,9 +50,12 @@ def ok(response: httpx.Response) -> dict:
 
 
 def state(up: RunningConsole) -> dict:
-    """Everything a refused request must leave as it was (not the link's ages or telemetry)."""
+    """Everything a refused request must leave as it was (not the link's ages or telemetry, and
+    not the program's ``refusal``: the refusal shown on its line is the answer, not a change)."""
     snap = ok(up.api("GET", "/api/session"))
-    return {key: snap[key] for key in ("arm", "program", "preview", "sent", "regime", "display", "control")}
+    kept = {key: snap[key] for key in ("arm", "program", "preview", "sent", "regime", "display", "control")}
+    kept["program"] = {k: v for k, v in kept["program"].items() if k != "refusal"}
+    return kept
 
 
 def assert_clear_refusal(response: httpx.Response) -> dict:
