@@ -3,6 +3,9 @@ per module: it takes seconds) and a fresh session on it per test, in virtual tim
 
 from __future__ import annotations
 
+import asyncio
+import threading
+
 import pytest
 
 from server.console import Session
@@ -10,10 +13,33 @@ from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.collision import SceneModel
 
 
+LOOP_WAIT_S = 10.0
+
+
 @pytest.fixture(scope="module")
 def cell_and_scene():
     cell = load_cell(DEFAULT_CELL)
     return cell, SceneModel.from_cell(cell)
+
+
+@pytest.fixture
+def loop():
+    """An event loop in a thread of its own, where a fake robot's coroutines run as the real
+    client's would; what a test started there finishes before the loop closes."""
+    loop = asyncio.new_event_loop()
+    thread = threading.Thread(target=loop.run_forever, name="fake-robot-loop", daemon=True)
+    thread.start()
+    yield loop
+
+    async def drain() -> None:
+        others = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        if others:
+            await asyncio.wait(others, timeout=LOOP_WAIT_S)
+
+    asyncio.run_coroutine_threadsafe(drain(), loop).result(LOOP_WAIT_S + 1)
+    loop.call_soon_threadsafe(loop.stop)
+    thread.join(LOOP_WAIT_S)
+    loop.close()
 
 
 class ManualClock:

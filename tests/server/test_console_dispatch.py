@@ -178,24 +178,6 @@ def cell_and_scene():
 
 
 @pytest.fixture
-def loop():
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name="fake-robot-loop", daemon=True)
-    thread.start()
-    yield loop
-
-    async def drain() -> None:  # let what the test started finish before the loop goes
-        others = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
-        if others:
-            await asyncio.wait(others, timeout=WAIT_S)
-
-    asyncio.run_coroutine_threadsafe(drain(), loop).result(WAIT_S + 1)
-    loop.call_soon_threadsafe(loop.stop)
-    thread.join(WAIT_S)
-    loop.close()
-
-
-@pytest.fixture
 def robot(session: Session, loop, clock):
     fake = FakeRobot(clock, loop)
     session.attach_robot(fake, loop)

@@ -12,7 +12,6 @@ import pytest
 from test_console_dispatch import (  # noqa: F401 - fixtures used by name
     FakeRobot,
     cell_and_scene,
-    loop,
     robot,
     statuses,
     wait_until,

@@ -8,7 +8,6 @@ numbers what it is sent and records it."""
 
 from __future__ import annotations
 
-import asyncio
 import threading
 import time
 from collections.abc import Iterable
@@ -84,17 +83,6 @@ def cell_and_scene():
     """A coarser collision hierarchy than the conftest's: built faster, the same answers."""
     cell = load_cell(DEFAULT_CELL)
     return cell, SceneModel.from_cell(cell, leaf_size=8)
-
-
-@pytest.fixture
-def loop():
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name="fake-robot-loop", daemon=True)
-    thread.start()
-    yield loop
-    loop.call_soon_threadsafe(loop.stop)
-    thread.join(WAIT_S)
-    loop.close()
 
 
 @pytest.fixture
