@@ -1,0 +1,1 @@
+"""Session recording and replay: every console session as one MCAP file."""
