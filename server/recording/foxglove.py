@@ -291,9 +291,20 @@ def cluster_vertices(vertices: np.ndarray, faces: np.ndarray, max_triangles: int
 def _mesh_triangles(mesh_path: str, scale: tuple[float, float, float]) -> tuple[list[dict], list[int]]:
     """A mesh file's points (in the shape's frame) and indices for a TriangleListPrimitive."""
     mesh = shape_mesh(LinkShape(kind="mesh", link_T_shape=np.eye(4), mesh_path=mesh_path, scale=scale))
-    vertices, faces = cluster_vertices(mesh.vertices, mesh.faces, MAX_MESH_TRIANGLES)
-    points = [_vector(v) for v in np.round(vertices, MESH_DECIMALS).tolist()]
-    return points, np.asarray(faces, dtype=np.int64).reshape(-1).tolist()
+    vertices, faces = _shared_vertices(mesh.vertices, mesh.faces)
+    vertices, faces = _shared_vertices(*cluster_vertices(vertices, faces, MAX_MESH_TRIANGLES))
+    return [_vector(v) for v in vertices.tolist()], faces.reshape(-1).tolist()
+
+
+def _shared_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Round vertices to ``MESH_DECIMALS`` and let faces share equal ones (mesh files often
+    repeat a vertex per face: three times the points), dropping faces that collapse."""
+    rounded = np.round(np.asarray(vertices, dtype=float), MESH_DECIMALS)
+    unique, inverse = np.unique(rounded, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1)[np.asarray(faces, dtype=np.int64)]
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    used, remap = np.unique(faces, return_inverse=True)
+    return unique[used], remap.reshape(-1, 3)
 
 
 def _shift_z(transform: np.ndarray, dz: float) -> np.ndarray:
