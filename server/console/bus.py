@@ -11,6 +11,7 @@ from typing import Generic, TypeVar
 
 from server.console.events import SessionEvent
 from server.console.views import VirtualState
+from shared.wire.telemetry import TelemetryFrame
 
 log = logging.getLogger(__name__)
 
@@ -52,11 +53,13 @@ class Listeners(Generic[T]):
 
 
 class EventBus:
-    """Typed session events, and the virtual arm's fast path (every arm change)."""
+    """Typed session events, the virtual arm's fast path (every arm change) and every telemetry
+    frame as it arrives (the events carry the remote arm at a lower rate)."""
 
     def __init__(self) -> None:
         self.events: Listeners[SessionEvent] = Listeners("session event")
         self.arm: Listeners[VirtualState] = Listeners("arm state")
+        self.telemetry: Listeners[TelemetryFrame] = Listeners("telemetry frame")
 
     def emit(self, events: Sequence[SessionEvent]) -> None:
         self.events.call(events)

@@ -49,6 +49,8 @@ import logging
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT, Regime, SentStatus
 from server.console.errors import (
@@ -61,6 +63,7 @@ from server.console.events import (
     LinkChanged,
     Notice,
     ProgramChanged,
+    RangeSubmitted,
     SentChanged,
 )
 from server.console.robot_seam import RobotLink
@@ -213,7 +216,9 @@ class Dispatch:
                 if self.robot_mode is not mode_before:
                     self._desk.forget_declined()  # the need for a mode line is a new one now
                 held_before = self._arm.objects.held
-                self._advance_start(statements, plan)
+                start_q = None if start_state.unknown else start_state.q.copy()
+                plan = self._advance_start(statements, plan)
+                submitted = self._submitted_event(comm, statements, start_q, plan)
                 arm_events = self._arm.refresh() if self._arm.objects.held != held_before or self._arm.objects.held is not None else []
                 self._desk.withdraw_confirmation()
         except ConsoleLineAdded as exc:
@@ -221,7 +226,7 @@ class Dispatch:
             raise
         asyncio.run_coroutine_threadsafe(self.send(robot, comm, statements), loop)
         view = self.view()
-        self._ctx.bus.emit([SentChanged(sent=view), ProgramChanged(program=self._desk.view()), *arm_events])
+        self._ctx.bus.emit([submitted, SentChanged(sent=view), ProgramChanged(program=self._desk.view()), *arm_events])
         self._arm.follow_start()  # an emptied program: the arm stands where what was sent ends
         self.remote.refresh_predicted()
         return view
@@ -367,12 +372,30 @@ class Dispatch:
             self.sent.append(Sent(len(self.sent) + 1, st, SentStatus.SENDING, now, self._comms))
         return self._comms
 
-    def _advance_start(self, statements: list[Statement], plan: Plan | None) -> None:
+    def _submitted_event(self, comm: int, statements: list[Statement], start_q: np.ndarray | None, plan: Plan | None) -> RangeSubmitted:
+        """What a recording keeps of a submission: the statements and the console's plan of them,
+        sampled at the preview's spacing (under the lock)."""
+        ids = [s.id for s in self.sent if s.comm == comm]
+        texts = [statement_text(st) for st in statements]
+        if start_q is None or plan is None:
+            return RangeSubmitted(ids=ids, texts=texts)
+        dt = self._ctx.settings.preview_dt
+        ts = np.append(np.arange(0.0, plan.duration, dt), plan.duration)
+        samples = plan.sample(ts)
+        return RangeSubmitted(
+            ids=ids, texts=texts, start_q=[float(v) for v in start_q], plan_t=ts.tolist(), plan_q=samples.q.tolist(),
+            statement_starts=np.asarray(plan.start_times, dtype=float).tolist(),
+            statement_ends=(np.asarray(plan.start_times, dtype=float) + plan.durations).tolist(),
+            complete=plan.ok and plan.after_task is None and len(plan.segments) == len(statements),
+        )
+
+    def _advance_start(self, statements: list[Statement], plan: Plan | None) -> Plan | None:
         """The program now starts where the submitted statements are predicted to end; a grasp
-        or release among them changes what the virtual gripper holds (under the lock)."""
+        or release among them changes what the virtual gripper holds (under the lock). Returns
+        the plan from the start (None when the start is unknown)."""
         start = self._desk.start
         if start.unknown:
-            return
+            return None
         ctx = self._ctx
         if plan is None:
             plan = plan_or_refuse(statements, ctx.robot, ctx.cell, start.q)
@@ -383,6 +406,7 @@ class Dispatch:
             if isinstance(segment.statement, TaskCall):
                 call = segment.statement
                 self._arm.objects.apply_task(call.name, call.args, world_T_tcp(ctx.robot, segment.q_start, ctx.frames))
+        return plan
 
     async def send(self, robot: RobotLink, comm: int, statements: list[Statement]) -> None:
         """One communication over the link; its answer numbers the statements."""

@@ -44,6 +44,8 @@ __all__ = [
     "ControlChanged",
     "ReadinessChanged",
     "Notice",
+    "ActionTaken",
+    "RangeSubmitted",
     "SessionEvent",
 ]
 
@@ -136,11 +138,36 @@ class Notice(_View):
     rule: str | None = None
 
 
+class ActionTaken(_View):
+    """The operator asked for a recovery or a re-sync (what the robot answered comes as a
+    ``Notice`` and in the link view)."""
+
+    type: Literal["action"] = "action"
+    action: Literal["stop", "resume", "skip", "abort", "back_away", "resync"]
+    client: str | None = Field(None, description="the caller's label; None: the page")
+    detail: str = ""
+
+
+class RangeSubmitted(_View):
+    """A range left for the robot, with the console's plan of it (what it predicts the robot does)."""
+
+    type: Literal["submitted"] = "submitted"
+    ids: list[int] = Field(description="console-local ids of the statements sent (SentView.id)")
+    texts: list[str]
+    start_q: list[float] | None = Field(None, description="where the plan starts, rad; None when the start is unknown")
+    plan_t: list[float] = Field(default_factory=list, description="plan times from the range's start, s")
+    plan_q: list[list[float]] = Field(default_factory=list, description="joint vector at each plan time, rad")
+    statement_starts: list[float] = Field(default_factory=list, description="plan time each statement starts, s")
+    statement_ends: list[float] = Field(default_factory=list)
+    complete: bool = Field(False, description="the plan covers the whole range (no refusal, no task whose end only the robot knows)")
+
+
 SessionEvent = Annotated[
     Union[
         ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
         PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
-        ControlChanged, TerrainChanged, PlacementChanged, ReadinessChanged, Notice,
+        ControlChanged, TerrainChanged, PlacementChanged, ReadinessChanged, Notice, ActionTaken,
+        RangeSubmitted,
     ],
     Field(discriminator="type"),
 ]

@@ -15,8 +15,9 @@ import numpy as np
 
 from server.console.context import ConsoleContext
 from server.console.enums import SentStatus
+from server.console.control import as_caller
 from server.console.errors import ConflictError
-from server.console.events import LinkChanged, Notice, SentChanged
+from server.console.events import ActionTaken, LinkChanged, Notice, SentChanged
 from server.console.views import Caller, LinkView, SentListView
 from shared.language.formatter import format_statement
 from shared.language.statements import Draw, Mode, SetMode, Statement
@@ -114,7 +115,8 @@ class Recovery:
 
         asyncio.run_coroutine_threadsafe(run(), loop)
         view = dispatch.view()
-        self._ctx.bus.emit([SentChanged(sent=view), LinkChanged(link=self._link.view()),
+        self._ctx.bus.emit([ActionTaken(action="back_away", client=as_caller(client).name, detail=format_statement(motion)),
+                            SentChanged(sent=view), LinkChanged(link=self._link.view()),
                             Notice(level="info", message=f"backing away: abort, then {format_statement(motion)}")])
         return view
 
@@ -155,5 +157,6 @@ class Recovery:
 
         asyncio.run_coroutine_threadsafe(run(), loop)
         view = self._link.view()
-        self._ctx.bus.emit([LinkChanged(link=view)])
+        action, _, detail = what.partition(" ")
+        self._ctx.bus.emit([ActionTaken(action=action, client=as_caller(client).name, detail=detail), LinkChanged(link=view)])
         return view

@@ -17,8 +17,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from server.console.context import ConsoleContext
+from server.console.control import as_caller
 from server.console.errors import ConflictError
 from server.console.events import (
+    ActionTaken,
     DivergenceChanged,
     PredictedPathChanged,
     ProgramChanged,
@@ -98,6 +100,7 @@ class RemoteMirror:
         """A telemetry frame (from the robot client on its loop, 50 Hz, or a replay): publish
         the remote arm at a lower rate; check divergence when the robot's state changes."""
         now = self._ctx.clock()
+        self._ctx.bus.telemetry.call((frame,))
         with self._ctx.lock:
             old = self.telemetry
             self.telemetry, self.telemetry_at = frame, now
@@ -213,5 +216,6 @@ class RemoteMirror:
             self._desk.withdraw_confirmation()
             self._divergence = self._divergence.model_copy(update={"diverged": False, "message": "re-synced from telemetry"})
         self._arm.publish_state()
-        ctx.bus.emit([*events, ProgramChanged(program=self._desk.view()), DivergenceChanged(divergence=self.divergence_view())])
+        ctx.bus.emit([ActionTaken(action="resync", client=as_caller(client).name), *events,
+                      ProgramChanged(program=self._desk.view()), DivergenceChanged(divergence=self.divergence_view())])
         return snapshot()
