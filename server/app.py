@@ -14,15 +14,18 @@ import logging
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager, suppress
 from dataclasses import dataclass
+from pathlib import Path
 
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
+from server.api.recordings import RecordingNow, RecordingsSource
 from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
 from server.console import Session
 from server.http_errors import add_error_handler
+from server.recording.recorder import SessionRecorder, record_session
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
@@ -37,6 +40,7 @@ class ConsoleState:
     settings: ConsoleSettings
     session: Session
     viser_port: int
+    recorder: SessionRecorder | None = None
 
 
 def _build_page(viser_server, session: Session) -> None:
@@ -60,6 +64,7 @@ def create_app(
         session = Session(cell)
         if children is not None:
             session.link.watch_children(children)
+        recorder = record_session(session, settings, started_link=children is not None)
         loop = asyncio.get_running_loop()
         tasks: list[asyncio.Task] = []
         client = None
@@ -81,8 +86,9 @@ def create_app(
         try:
             if build_page:
                 _build_page(viser_server, session)
-            holder["state"] = ConsoleState(settings, session, viser_server.get_port())
+            holder["state"] = ConsoleState(settings, session, viser_server.get_port(), recorder)
             app.state.console = holder["state"]
+            app.state.recordings = RecordingsSource(Path(settings.record_dir), lambda: _recording_now(recorder))
             log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
             yield
         finally:
@@ -93,6 +99,8 @@ def create_app(
                 await asyncio.gather(*tasks, return_exceptions=True)
             if client is not None:
                 await client.close()
+            if recorder is not None:
+                recorder.close()
             viser_server.stop()
 
     app = FastAPI(
@@ -129,6 +137,13 @@ def create_app(
         send_intervals_ms=settings.page_send_intervals_ms(),
     )
     return app
+
+
+def _recording_now(recorder: SessionRecorder | None) -> RecordingNow | None:
+    if recorder is None:
+        return None
+    stats = recorder.writer.stats()
+    return RecordingNow(path=stats.path, written=stats.written, dropped=stats.dropped, failed=stats.failed)
 
 
 def _no_scene() -> int:

@@ -9,6 +9,7 @@ from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from shared.cells.loader import DEFAULT_CELL
+from shared.paths import PROJECT_DIR
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S
 
 
@@ -37,6 +38,14 @@ class ConsoleSettings(BaseSettings):
     silence_limit_s: float = Field(
         DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0,
         description="silence beyond the expected arrival after which the console shows the robot silent, telemetry stale (s)",
+    )
+    record: bool = Field(True, description="record the session into an MCAP file (--no-record: off)")
+    record_dir: Path = Field(
+        PROJECT_DIR / "recordings", description="folder of the session recordings (--record DIR; GET /api/sessions lists it)"
+    )
+    record_queue: int = Field(20_000, ge=100, description="messages the recorder may hold before it drops (never blocks)")
+    record_flush_s: float = Field(
+        1.0, gt=0.0, le=60.0, description="a chunk is closed at least this often: a killed console loses at most this much (s)"
     )
     # the sedimentation view (``teleprog up --sedimentation``, thesis chapter 5)
     sedimentation: bool = Field(False, description="serve the particle-sedimentation view instead of the robot console")

@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+# every console a test starts (in this process or as a child) records into a folder of its own,
+# never into the project's recordings/
+os.environ.setdefault("TELEPROG_RECORD_DIR", tempfile.mkdtemp(prefix="teleprog-recordings-"))
 
 from support import CHROMIUM_ARGS, RunningConsole, screenshot_if_failed, start_console, stop_process
 

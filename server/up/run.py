@@ -49,6 +49,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
         port=get("port"), host=get("host"), cell=get("cell"), delay_ms=get("delay_ms"), robot_url=get("robot_url"),
         no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
         sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
+        record=False if get("no_record") else None, record_dir=get("record"),
     )
 
 

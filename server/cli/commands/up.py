@@ -27,6 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     up.add_argument(
         "--no-restart", action="store_true", help="leave a telerobot or link child that exits stopped (default: start it again)"
     )
+    rec = up.add_mutually_exclusive_group()
+    rec.add_argument("--record", metavar="DIR", default=None, help="folder for the session's MCAP recording (default recordings/)")
+    rec.add_argument("--no-record", action="store_true", help="record nothing")
     group = up.add_mutually_exclusive_group()
     group.add_argument("--no-robot", action="store_true", help="console only: start no robot and no link")
     group.add_argument("--robot-url", default=None, help="use a running robot or link at this ws:// URL")
