@@ -1,0 +1,124 @@
+"""A picture of a net: a layered layout of its own and an SVG of it.
+
+Layers are breadth-first distances along arcs from the initially marked places (from the
+first place when none is marked; unreached nodes start new layers). Layers run left to right,
+nodes of a layer top to bottom. Places are circles with their token count, transitions are
+bars, arcs are arrows with their weight when it is not 1; ids sit beside the nodes, with the
+predicate or action under them when there is one.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from html import escape
+
+import numpy as np
+
+from shared.tasknet.ptnet import PTNet
+
+GAP_X = 150.0
+GAP_Y = 90.0
+RADIUS = 18.0
+BAR_W, BAR_H = 10.0, 40.0
+MARGIN = 60.0
+
+
+def layered_positions(net: PTNet) -> dict[str, tuple[float, float]]:
+    """Node id to (x, y) in SVG units (y grows downwards)."""
+    succ: dict[str, list[str]] = {n.id: [] for n in (*net.places, *net.transitions)}
+    for a in net.arcs:
+        succ[a.source].append(a.target)
+    order = [n.id for n in (*net.places, *net.transitions)]
+    layer: dict[str, int] = {}
+    starts = [p.id for p in net.places if p.initial] or order[:1]
+    next_layer = 0
+    while len(layer) < len(order):
+        if not starts:
+            starts = [next(n for n in order if n not in layer)]
+        queue = deque()
+        for s in starts:
+            layer[s] = next_layer
+            queue.append(s)
+        while queue:
+            n = queue.popleft()
+            for m in succ[n]:
+                if m not in layer:
+                    layer[m] = layer[n] + 1
+                    queue.append(m)
+        next_layer = max(layer.values()) + 1
+        starts = []
+    rows: dict[int, int] = {}
+    pos: dict[str, tuple[float, float]] = {}
+    for n in order:
+        k = layer[n]
+        pos[n] = (MARGIN + k * GAP_X, MARGIN + rows.get(k, 0) * GAP_Y)
+        rows[k] = rows.get(k, 0) + 1
+    return pos
+
+
+def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
+    """An SVG document of ``net`` showing ``marking`` (M0 when None); marked places are shaded."""
+    m = net.m0 if marking is None else net.marking(marking)
+    pos = layered_positions(net)
+    width = max((x for x, _ in pos.values()), default=0.0) + MARGIN + 80
+    height = max((y for _, y in pos.values()), default=0.0) + MARGIN + 30
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height:.0f}" '
+        f'viewBox="0 0 {width:.0f} {height:.0f}" font-family="sans-serif" font-size="12">',
+        f"<title>{escape(net.name or net.id)}</title>",
+        '<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="7" markerHeight="7" '
+        'orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="#333"/></marker></defs>',
+    ]
+    places = {p.id for p in net.places}
+    for a in net.arcs:
+        (x0, y0), (x1, y1) = pos[a.source], pos[a.target]
+        d = np.hypot(x1 - x0, y1 - y0) or 1.0
+        ux, uy = (x1 - x0) / d, (y1 - y0) / d
+        sx, sy = _edge(x0, y0, ux, uy, a.source in places)
+        ex, ey = _edge(x1, y1, -ux, -uy, a.target in places)
+        out.append(
+            f'<line class="arc" data-source="{escape(a.source)}" data-target="{escape(a.target)}" '
+            f'x1="{sx:.1f}" y1="{sy:.1f}" x2="{ex:.1f}" y2="{ey:.1f}" stroke="#333" marker-end="url(#arrow)"/>'
+        )
+        if a.weight != 1:
+            mx, my = (sx + ex) / 2 - 8 * uy, (sy + ey) / 2 + 8 * ux
+            out.append(f'<text class="weight" x="{mx:.1f}" y="{my:.1f}" text-anchor="middle">{a.weight}</text>')
+    for i, p in enumerate(net.places):
+        x, y = pos[p.id]
+        tokens = int(m[i])
+        fill = "#ffe9a8" if tokens else "#ffffff"
+        out.append(
+            f'<g class="place" data-id="{escape(p.id)}" data-tokens="{tokens}">'
+            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{RADIUS}" fill="{fill}" stroke="#333" stroke-width="1.5"/>'
+            + (f'<text x="{x:.1f}" y="{y + 4:.1f}" text-anchor="middle" font-weight="bold">{tokens}</text>' if tokens else "")
+            + f'<text x="{x:.1f}" y="{y - RADIUS - 6:.1f}" text-anchor="middle">{escape(p.id)}</text>'
+            + _label(x, y + RADIUS + 14, p.predicate)
+            + "</g>"
+        )
+    for t in net.transitions:
+        x, y = pos[t.id]
+        out.append(
+            f'<g class="transition" data-id="{escape(t.id)}">'
+            f'<rect x="{x - BAR_W / 2:.1f}" y="{y - BAR_H / 2:.1f}" width="{BAR_W}" height="{BAR_H}" fill="#333"/>'
+            f'<text x="{x:.1f}" y="{y - BAR_H / 2 - 6:.1f}" text-anchor="middle">{escape(t.id)}</text>'
+            + _label(x, y + BAR_H / 2 + 14, t.action)
+            + "</g>"
+        )
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
+def _edge(x: float, y: float, ux: float, uy: float, is_place: bool) -> tuple[float, float]:
+    """Where a ray from a node's centre along (ux, uy) leaves the node's outline."""
+    if is_place:
+        return x + RADIUS * ux, y + RADIUS * uy
+    sx = (BAR_W / 2) / abs(ux) if ux else np.inf
+    sy = (BAR_H / 2) / abs(uy) if uy else np.inf
+    s = min(sx, sy)
+    return x + s * ux, y + s * uy
+
+
+def _label(x: float, y: float, text: str | None) -> str:
+    if not text:
+        return ""
+    return f'<text class="label" x="{x:.1f}" y="{y:.1f}" text-anchor="middle" fill="#555">{escape(text)}</text>'
