@@ -8,12 +8,13 @@ in Table 3.2) are allowed: the event needs the condition and leaves it holding.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from shared.errors import InputError
-from shared.tasknet.analysis import DEFAULT_STATES_CAP, reachability_graph
+from shared.tasknet.analysis import DEFAULT_STATES_CAP
 from shared.tasknet.ptnet import Arc, Place, PTNet, Transition
 
 
@@ -80,13 +81,22 @@ def check_condition_event(net: PTNet, cap: int = DEFAULT_STATES_CAP) -> None:
             raise InputError(f"net {net.id!r}: place {p.id!r} has a capacity; a C/E net has none (1-safety bounds it)")
         if p.initial > 1:
             raise InputError(f"net {net.id!r}: place {p.id!r} starts with {p.initial} tokens; a condition holds or not")
-    graph = reachability_graph(net, cap)
-    over = (graph.markings > 1).any(axis=1)
-    if over.any():
-        m = graph.markings[int(over.argmax())]
-        raise InputError(f"net {net.id!r} is not 1-safe: it reaches the marking {net.marking_dict(m)}")
-    if not graph.complete:
-        raise InputError(f"net {net.id!r}: more than {cap} reachable markings; 1-safety not established")
+    # breadth-first like reachability_graph, but stopping at the first marking over 1
+    seen = {net.m0.tobytes()}
+    queue = deque([net.m0])
+    while queue:
+        _, nexts = net.successors(queue.popleft())
+        over = (nexts > 1).any(axis=1)
+        if over.any():
+            m = nexts[int(over.argmax())]
+            raise InputError(f"net {net.id!r} is not 1-safe: it reaches the marking {net.marking_dict(m)}")
+        for m in nexts:
+            key = m.tobytes()
+            if key not in seen:
+                if len(seen) >= cap:
+                    raise InputError(f"net {net.id!r}: more than {cap} reachable markings; 1-safety not established")
+                seen.add(key)
+                queue.append(m)
 
 
 def to_condition_event_model(net: PTNet) -> ConditionEventModel:

@@ -3,7 +3,8 @@
 Layers are breadth-first distances along arcs from the initially marked places (from the
 first place when none is marked; unreached nodes start new layers). Layers run left to right,
 nodes of a layer top to bottom. Places are circles with their token count, transitions are
-bars, arcs are arrows with their weight when it is not 1; ids sit beside the nodes, with the
+bars, arcs are arrows with their weight when it is not 1 (bent when they
+run back or have a twin the other way); capacities show as K=n; ids sit beside the nodes, with the
 predicate or action under them when there is one.
 """
 
@@ -16,11 +17,11 @@ import numpy as np
 
 from shared.tasknet.ptnet import PTNet
 
-GAP_X = 150.0
+GAP_X = 170.0
 GAP_Y = 90.0
 RADIUS = 18.0
 BAR_W, BAR_H = 10.0, 40.0
-MARGIN = 60.0
+MARGIN = 90.0
 
 
 def layered_positions(net: PTNet) -> dict[str, tuple[float, float]]:
@@ -70,19 +71,29 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
         'orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="#333"/></marker></defs>',
     ]
     places = {p.id for p in net.places}
+    pairs = {(a.source, a.target) for a in net.arcs}
     for a in net.arcs:
         (x0, y0), (x1, y1) = pos[a.source], pos[a.target]
-        d = np.hypot(x1 - x0, y1 - y0) or 1.0
-        ux, uy = (x1 - x0) / d, (y1 - y0) / d
-        sx, sy = _edge(x0, y0, ux, uy, a.source in places)
-        ex, ey = _edge(x1, y1, -ux, -uy, a.target in places)
+        d = float(np.hypot(x1 - x0, y1 - y0)) or 1.0
+        nx, ny = -(y1 - y0) / d, (x1 - x0) / d  # the left normal of the straight line
+        # an arc with a reverse twin, or one running back along the layers, bends to its left
+        bend = 0.0
+        if (a.target, a.source) in pairs:
+            bend = 18.0
+        elif x1 < x0 or (x1 == x0 and y1 < y0):
+            bend = max(30.0, 0.2 * d)
+        cx, cy = (x0 + x1) / 2 + bend * nx, (y0 + y1) / 2 + bend * ny
+        sx, sy = _edge(x0, y0, *_unit(cx - x0, cy - y0), a.source in places)
+        ex, ey = _edge(x1, y1, *_unit(cx - x1, cy - y1), a.target in places)
         out.append(
-            f'<line class="arc" data-source="{escape(a.source)}" data-target="{escape(a.target)}" '
-            f'x1="{sx:.1f}" y1="{sy:.1f}" x2="{ex:.1f}" y2="{ey:.1f}" stroke="#333" marker-end="url(#arrow)"/>'
+            f'<path class="arc" data-source="{escape(a.source)}" data-target="{escape(a.target)}" '
+            f'd="M{sx:.1f},{sy:.1f} Q{cx:.1f},{cy:.1f} {ex:.1f},{ey:.1f}" fill="none" stroke="#333" '
+            'marker-end="url(#arrow)"/>'
         )
         if a.weight != 1:
-            mx, my = (sx + ex) / 2 - 8 * uy, (sy + ey) / 2 + 8 * ux
-            out.append(f'<text class="weight" x="{mx:.1f}" y="{my:.1f}" text-anchor="middle">{a.weight}</text>')
+            # the curve's midpoint, nudged off the line
+            mx, my = (sx + 2 * cx + ex) / 4 + 9 * nx, (sy + 2 * cy + ey) / 4 + 9 * ny
+            out.append(f'<text class="weight" x="{mx:.1f}" y="{my + 4:.1f}" text-anchor="middle">{a.weight}</text>')
     for i, p in enumerate(net.places):
         x, y = pos[p.id]
         tokens = int(m[i])
@@ -93,6 +104,7 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
             + (f'<text x="{x:.1f}" y="{y + 4:.1f}" text-anchor="middle" font-weight="bold">{tokens}</text>' if tokens else "")
             + f'<text x="{x:.1f}" y="{y - RADIUS - 6:.1f}" text-anchor="middle">{escape(p.id)}</text>'
             + _label(x, y + RADIUS + 14, p.predicate)
+            + (f'<text x="{x + RADIUS + 4:.1f}" y="{y - RADIUS:.1f}" fill="#555">K={p.capacity}</text>' if p.capacity else "")
             + "</g>"
         )
     for t in net.transitions:
@@ -116,6 +128,11 @@ def _edge(x: float, y: float, ux: float, uy: float, is_place: bool) -> tuple[flo
     sy = (BAR_H / 2) / abs(uy) if uy else np.inf
     s = min(sx, sy)
     return x + s * ux, y + s * uy
+
+
+def _unit(dx: float, dy: float) -> tuple[float, float]:
+    d = float(np.hypot(dx, dy)) or 1.0
+    return dx / d, dy / d
 
 
 def _label(x: float, y: float, text: str | None) -> str:
