@@ -20,6 +20,9 @@ from shared.errors import TeleprogError
 from shared.tasknet.ptnet import PTNet
 
 DEFAULT_STATES_CAP = 100_000
+COVERABILITY_CAP = 20_000
+"""The most Karp-Miller nodes ``check_net`` builds when reachability stopped at its cap (each
+node compares itself with all its ancestors, so the tree costs more per node than the graph)."""
 OMEGA = -1
 """How an omega entry (unboundedly many tokens) is written in a coverability marking."""
 
@@ -101,6 +104,8 @@ def reachability_graph(net: PTNet, cap: int = DEFAULT_STATES_CAP, strict: bool =
     )
 
 
+_MANY = np.iinfo(np.int64).max // 2
+
 # -- coverability --------------------------------------------------------------------------
 
 
@@ -138,42 +143,58 @@ def coverability_tree(net: PTNet, cap: int = DEFAULT_STATES_CAP) -> Coverability
     A net with capacities is analysed through ``net.without_capacities()`` (Karp-Miller needs
     monotone firing) and the result is given on the net's own places."""
     base = net.without_capacities()
-    pre, c = base.pre, base.incidence
+    c = base.incidence
     n_orig = len(net.places)
     markings = [np.array(base.m0)]
     parent = [-1]
     via = [-1]
+    # per node: its finite token total and its number of omega places, for a cheap pre-test
+    # (a child without omega can only strictly cover an ancestor without omega and with fewer
+    # tokens), so bounded and conservative nets skip the comparison with all ancestors
+    tot = np.zeros(cap + 1, dtype=np.int64)
+    nom = np.zeros(cap + 1, dtype=np.int64)
+    tot[0] = int(base.m0.sum())
+    chains: dict[int, np.ndarray] = {0: np.array([0], dtype=np.int64)}  # ancestors of queued nodes, self included
     seen: set[bytes] = {markings[0].tobytes()}
     queue: deque[int] = deque([0])
     while queue:
         i = queue.popleft()
         m = markings[i]
+        chain = chains.pop(i)
         omega = m == OMEGA
-        enabled = (omega[:, None] | (m[:, None] >= pre)).all(axis=0)
-        # the ancestors of the children: i and its chain up to the root
-        chain = [i]
-        while parent[chain[-1]] >= 0:
-            chain.append(parent[chain[-1]])
-        ancestors = np.array([markings[a] for a in chain])
+        enabled = base.enabled(np.where(omega, _MANY, m))  # omega covers any weight
+        ancestors = anc_omega = None
         for t in np.flatnonzero(enabled):
             child = np.where(omega, OMEGA, m + c[:, t])
-            # acceleration: a strictly covered ancestor turns every grown place into omega
-            anc_omega = ancestors == OMEGA
             child_omega = child == OMEGA
-            le = (child_omega[None, :] | (~anc_omega & (ancestors <= child[None, :]))).all(axis=1)
-            grown = ~anc_omega & ~child_omega[None, :] & (ancestors < child[None, :])
-            strict = le & grown.any(axis=1)
-            if strict.any():
-                child = np.where(grown[strict].any(axis=0), OMEGA, child)
+            if child_omega.any():
+                candidates = True
+            else:
+                candidates = bool(((nom[chain] == 0) & (tot[chain] < child.sum())).any())
+            if candidates:
+                # acceleration: a strictly covered ancestor turns every grown place into omega
+                if ancestors is None:
+                    ancestors = np.array([markings[a] for a in chain])
+                    anc_omega = ancestors == OMEGA
+                le = (child_omega[None, :] | (~anc_omega & (ancestors <= child[None, :]))).all(axis=1)
+                grown = ~anc_omega & ~child_omega[None, :] & (ancestors < child[None, :])
+                strict = le & grown.any(axis=1)
+                if strict.any():
+                    child = np.where(grown[strict].any(axis=0), OMEGA, child)
+                    child_omega = child == OMEGA
             if len(markings) >= cap:
                 raise StateSpaceTooLarge(f"net {net.id!r}: the coverability tree has more than {cap} nodes")
+            k = len(markings)
             markings.append(child)
             parent.append(i)
             via.append(int(t))
+            tot[k] = int(child[~child_omega].sum())
+            nom[k] = int(child_omega.sum())
             key = child.tobytes()
             if key not in seen:
                 seen.add(key)
-                queue.append(len(markings) - 1)
+                queue.append(k)
+                chains[k] = np.append(chain, k)
     arr = np.array(markings, dtype=np.int64)[:, :n_orig]
     return CoverabilityTree(net=net, markings=arr, parent=np.array(parent), via=np.array(via))
 
@@ -251,7 +272,7 @@ def check_net(net: PTNet, cap: int = DEFAULT_STATES_CAP, max_dead_listed: int = 
         live_map = None
         deadlock_free = False if len(dead) else None
         try:
-            tree = coverability_tree(net, cap)
+            tree = coverability_tree(net, min(cap, COVERABILITY_CAP))
         except StateSpaceTooLarge as exc:
             notes.append(str(exc))
             bounds, bounded, quasi = None, None, None

@@ -38,7 +38,8 @@ def test_state_equation_holds_for_every_fired_sequence(net, choices):
 @settings(max_examples=80, deadline=None)
 @given(net=small_nets(capacities=True), tokens=st.lists(st.integers(0, 4), min_size=5, max_size=5))
 def test_vectorised_enabling_agrees_with_definition_3_4_place_by_place(net, tokens):
-    m = np.array(tokens[: len(net.places)], dtype=np.int64)
+    # a marking holds at most K(s) on each place (Definition 3.4 i)
+    m = np.minimum(np.array(tokens[: len(net.places)], dtype=np.int64), net.capacity)
     enabled = net.enabled(m)
     for j in range(len(net.transitions)):
         by_definition = all(

@@ -67,7 +67,7 @@ def test_reachable_markings_are_those_snakes_finds(net):
 
 
 @settings(max_examples=40, deadline=None)
-@given(net=small_nets(max_places=4, max_transitions=4))
+@given(net=small_nets(max_places=4, max_transitions=4, capacities=True))
 def test_every_reachable_marking_is_covered_by_the_karp_miller_tree(net):
     try:
         tree = coverability_tree(net, cap=3000)
@@ -77,6 +77,8 @@ def test_every_reachable_marking_is_covered_by_the_karp_miller_tree(net):
     for m in graph.markings:
         assert tree.covers(m)
     bounds = tree.bounds()
+    capped = net.capacity < np.iinfo(np.int64).max
+    assert (bounds[capped] != OMEGA).all() and (bounds[capped] <= net.capacity[capped]).all()
     if graph.complete:
         # bounded: the tree holds exactly the reachable markings, no omega
         assert (bounds != OMEGA).all()
