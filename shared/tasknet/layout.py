@@ -64,11 +64,15 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
     width = max((x for x, _ in pos.values()), default=0.0) + MARGIN + 80
     height = max((y for _, y in pos.values()), default=0.0) + MARGIN + 30
     out = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height:.0f}" '
-        f'viewBox="0 0 {width:.0f} {height:.0f}" font-family="sans-serif" font-size="12">',
+        (
+            f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height:.0f}" '
+            f'viewBox="0 0 {width:.0f} {height:.0f}" font-family="sans-serif" font-size="12">'
+        ),
         f"<title>{escape(net.name or net.id)}</title>",
-        '<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="7" markerHeight="7" '
-        'orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="#333"/></marker></defs>',
+        (
+            '<defs><marker id="arrow" viewBox="0 0 10 10" refX="10" refY="5" markerWidth="7" markerHeight="7" '
+            'orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="#333"/></marker></defs>'
+        ),
     ]
     places = {p.id for p in net.places}
     pairs = {(a.source, a.target) for a in net.arcs}

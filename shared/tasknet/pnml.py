@@ -4,7 +4,7 @@ Written: one ``<net>`` of type ``http://www.pnml.org/version-2009/grammar/ptnet`
 page; places with ``name`` and ``initialMarking``, transitions with ``name``, arcs with an
 ``inscription`` (the weight, written when it is not 1) and, where a layout is given,
 ``graphics/position``. What the standard P/T grammar has no element for (a place's predicate
-and capacity, a transition's action) goes into ``<toolspecific tool="teleprog">``, which other
+and capacity, a transition's action) goes into ``<toolspecific tool="teleprog"><info .../>``, which other
 tools keep or ignore.
 
 Read: the first net of the file, every page and nested page flattened; the PNML namespace may
@@ -33,7 +33,10 @@ TOOL_VERSION = "1"
 def net_to_pnml(net: PTNet, positions: dict[str, tuple[float, float]] | None = None) -> str:
     """The PNML document of ``net``; ``positions`` (node id to x, y in PNML units) adds graphics."""
     ET.register_namespace("", PNML_NS)
-    q = lambda tag: f"{{{PNML_NS}}}{tag}"  # noqa: E731
+
+    def q(tag: str) -> str:
+        return f"{{{PNML_NS}}}{tag}"
+
     root = ET.Element(q("pnml"))
     enet = ET.SubElement(root, q("net"), id=net.id, type=PTNET_TYPE)
     if net.name:
@@ -54,7 +57,7 @@ def net_to_pnml(net: PTNet, positions: dict[str, tuple[float, float]] | None = N
             _text(ET.SubElement(ep, q("initialMarking")), q, str(p.initial))
         extra = {k: str(v) for k, v in (("predicate", p.predicate), ("capacity", p.capacity)) if v is not None}
         if extra:
-            ET.SubElement(ET.SubElement(ep, q("toolspecific"), tool=TOOL, version=TOOL_VERSION), q("place"), extra)
+            ET.SubElement(ET.SubElement(ep, q("toolspecific"), tool=TOOL, version=TOOL_VERSION), q("info"), extra)
     for t in net.transitions:
         et = ET.SubElement(page, q("transition"), id=t.id)
         if t.name:
@@ -62,7 +65,7 @@ def net_to_pnml(net: PTNet, positions: dict[str, tuple[float, float]] | None = N
         graphics(et, t.id)
         if t.action is not None:
             ET.SubElement(
-                ET.SubElement(et, q("toolspecific"), tool=TOOL, version=TOOL_VERSION), q("transition"), action=t.action
+                ET.SubElement(et, q("toolspecific"), tool=TOOL, version=TOOL_VERSION), q("info"), action=t.action
             )
     for k, a in enumerate(net.arcs):
         ea = ET.SubElement(page, q("arc"), id=f"a{k}-{a.source}-{a.target}", source=a.source, target=a.target)
@@ -135,7 +138,7 @@ def pnml_to_net(data: bytes | str, path: str | Path = "<pnml>") -> PTNet:
         if not eid:
             raise FileFormatError(path, "missing id attribute", field=where)
         if el.tag == "place":
-            tool = _tool(el, "place")
+            tool = _tool(el)
             initial = _int_text(path, where, el.find("initialMarking"), "initialMarking", default=0, minimum=0)
             capacity = _int_attr(path, where, tool, "capacity", minimum=1)
             places.append(
@@ -143,7 +146,7 @@ def pnml_to_net(data: bytes | str, path: str | Path = "<pnml>") -> PTNet:
                       initial=initial, capacity=capacity)
             )
         elif el.tag == "transition":
-            tool = _tool(el, "transition")
+            tool = _tool(el)
             transitions.append(Transition(id=eid, name=_name(el), action=tool.get("action") if tool is not None else None))
         else:
             src, tgt = el.get("source"), el.get("target")
@@ -167,10 +170,11 @@ def _name(el: ET.Element) -> str | None:
     return text.text.strip() if text is not None and text.text else None
 
 
-def _tool(el: ET.Element, tag: str) -> ET.Element | None:
+def _tool(el: ET.Element) -> ET.Element | None:
+    """The ``<info>`` this tool wrote under a node (predicate, capacity, action), if any."""
     for ts in el.findall("toolspecific"):
         if ts.get("tool") == TOOL:
-            return ts.find(tag)
+            return ts.find("info")
     return None
 
 

@@ -40,6 +40,9 @@ def test_written_pnml_is_a_standard_pt_net():
     ns = {"p": PNML_NS}
     assert root.tag == f"{{{PNML_NS}}}pnml"
     assert root.find("p:net", ns).get("type") == PTNET_TYPE
+    # what P/T PNML has no element for stays inside toolspecific, never as extra place elements
+    assert len(list(root.iter(f"{{{PNML_NS}}}place"))) == len(net.places)
+    assert root.find(".//p:place[@id='buffer']/p:toolspecific/p:info", ns).get("capacity") == "3"
     weights = [a.find("p:inscription/p:text", ns).text for a in root.iter(f"{{{PNML_NS}}}arc") if a.find("p:inscription", ns) is not None]
     assert weights == ["2"]
     marked = {pl.get("id"): pl.find("p:initialMarking/p:text", ns).text for pl in root.iter(f"{{{PNML_NS}}}place") if pl.find("p:initialMarking", ns) is not None}
