@@ -1,6 +1,13 @@
 """What recording a session costs the console: its CPU with and without the MCAP recorder.
 
-A running ``teleprog up --delay-ms 200`` (telerobot streaming telemetry at 50 Hz through the
+**in process** (the figure): the console's session in this process does a fixed piece of work,
+a drag of 3,000 tool jogs (back and forth along x, 40 mm each way) with a telemetry frame handed
+to it after every second jog (the 50 Hz stream under a 100 Hz drag), then closes the recorder
+(its writer's backlog counts). The process's CPU time (every thread: ``time.process_time``) with
+and without a ``SessionRecorder``; runs alternate, medians of each. Fixed work, no sleeps: the
+figure does not depend on how busy the machine is.
+
+**processes** (``--processes``): a running ``teleprog up --delay-ms 200`` (telerobot streaming telemetry at 50 Hz through the
 link, the console receiving it) while a client drags the virtual arm at the gizmo's full rate
 (one tool jog every 10 ms, back and forth along x, over the HTTP API: the same session path the
 page's gizmo takes, each move an arm change, a collision check and its events). The console
@@ -8,8 +15,9 @@ process's own CPU time (``/proc/PID/stat`` user + system, not its children) is r
 window; runs alternate recorded (``--record DIR``) and unrecorded (``--no-record``), and the
 figure is the median of each. Goal (issue 17): recording costs under 5 % of the console's CPU.
 
-    .venv/bin/python benchmarks/bench_recording.py            # table
+    .venv/bin/python benchmarks/bench_recording.py                # in process, table
     .venv/bin/python benchmarks/bench_recording.py --json
+    .venv/bin/python benchmarks/bench_recording.py --processes    # running consoles
 """
 
 from __future__ import annotations
@@ -82,13 +90,72 @@ def one_run(record: bool, seconds: float, rate_hz: float, folder: Path) -> dict:
             "moves": moves[0], "written": rec["written"] if rec else 0, "dropped": rec["dropped"] if rec else 0}
 
 
+def in_process_run(record: bool, jogs: int, folder: Path) -> dict:
+    import numpy as np
+
+    from server.console import Session
+    from server.recording.recorder import SessionRecorder
+    from shared.cells.loader import DEFAULT_CELL, load_cell
+    from shared.wire.messages import ControlMode, RobotState
+    from shared.wire.telemetry import TelemetryFrame
+
+    cell = load_cell(DEFAULT_CELL)
+    session = Session(cell)
+    session.program.set_auto_generate(False)
+    q0 = session.arm.state.q.copy()
+    recorder = SessionRecorder(session, folder / f"bench-{time.time_ns()}.mcap", cell_file=DEFAULT_CELL) if record else None
+    if recorder is not None:
+        recorder.start()
+    c0 = time.process_time()
+    for i in range(jogs):
+        sign = 1.0 if (i // 40) % 2 == 0 else -1.0
+        session.arm.jog_tool(frame="world", constraint="x", motion="translate", displacement=np.array([sign * 1e-3, 0.0, 0.0]))
+        if i % 2 == 0:
+            q = q0 + 1e-4 * (i % 80)
+            session.remote.on_telemetry(TelemetryFrame(
+                time=i * 0.02, frame=i // 2, state=RobotState.RUNNING, mode=ControlMode.POSITION, statement=1,
+                q=tuple(q.tolist()), position=(0.4, 0.1, 0.3), rpy=(0.0, 0.0, 0.0)))
+    written = dropped = 0
+    if recorder is not None:
+        stats = recorder.close()
+        written, dropped = stats.written, stats.dropped
+    return {"recorded": record, "cpu_s": time.process_time() - c0, "jogs": jogs, "written": written, "dropped": dropped}
+
+
+def main_in_process(args: argparse.Namespace) -> int:
+    runs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        in_process_run(True, 200, Path(tmp))  # warm-up: imports, caches, numba
+        for i in range(args.pairs):
+            for record in (i % 2 == 0, i % 2 != 0):
+                runs.append(in_process_run(record, args.jogs, Path(tmp)))
+                print(f"run {len(runs)}: {'recorded' if record else 'unrecorded'} {runs[-1]['cpu_s']:.2f} s CPU", file=sys.stderr)
+    on = statistics.median(r["cpu_s"] for r in runs if r["recorded"])
+    off = statistics.median(r["cpu_s"] for r in runs if not r["recorded"])
+    result = {"runs": runs, "cpu_s_recorded": on, "cpu_s_unrecorded": off, "overhead_pct": 100 * (on - off) / off,
+              "goal_pct": 5.0, "jogs": args.jogs}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"| session work, unrecorded | {off:.2f} s CPU ({1e3 * off / args.jogs:.2f} ms per jog) |")
+        print(f"| session work, recorded | {on:.2f} s CPU ({1e3 * on / args.jogs:.2f} ms per jog) |")
+        print(f"| recording's cost | {result['overhead_pct']:+.1f} % (goal < 5 %) |")
+        print(f"| messages written per run | {statistics.median(r['written'] for r in runs if r['recorded']):.0f}, "
+              f"dropped {max(r['dropped'] for r in runs if r['recorded'])} |")
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=15.0, help="measured window per run")
     parser.add_argument("--rate", type=float, default=100.0, help="drag events per second")
     parser.add_argument("--pairs", type=int, default=3, help="recorded/unrecorded run pairs")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--processes", action="store_true", help="measure running teleprog up processes instead")
+    parser.add_argument("--jogs", type=int, default=3000, help="jogs per in-process run")
     args = parser.parse_args()
+    if not args.processes:
+        return main_in_process(args)
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.pairs):
