@@ -36,7 +36,7 @@ from pathlib import Path
 import httpx
 
 PROJECT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(PROJECT / "tests"))
+sys.path[:0] = [str(PROJECT), str(PROJECT / "tests")]  # this checkout's code, not the installed one
 
 from support import free_port, wait_for, wait_http  # noqa: E402
 
@@ -90,7 +90,7 @@ def one_run(record: bool, seconds: float, rate_hz: float, folder: Path) -> dict:
             "moves": moves[0], "written": rec["written"] if rec else 0, "dropped": rec["dropped"] if rec else 0}
 
 
-def in_process_run(record: bool, jogs: int, folder: Path) -> dict:
+def in_process_run(record: bool, jogs: int, folder: Path, rate_hz: float = 100.0) -> dict:
     import numpy as np
 
     from server.console import Session
@@ -100,7 +100,9 @@ def in_process_run(record: bool, jogs: int, folder: Path) -> dict:
     from shared.wire.telemetry import TelemetryFrame
 
     cell = load_cell(DEFAULT_CELL)
-    session = Session(cell)
+    start = time.time()
+    simulated = [0.0]  # the session's clocks run on the drag's time: a jog every 1 / rate_hz
+    session = Session(cell, clock=lambda: 1e6 + simulated[0], wall_clock=lambda: start + simulated[0])
     session.program.set_auto_generate(False)
     q0 = session.arm.state.q.copy()
     recorder = SessionRecorder(session, folder / f"bench-{time.time_ns()}.mcap", cell_file=DEFAULT_CELL) if record else None
@@ -108,6 +110,7 @@ def in_process_run(record: bool, jogs: int, folder: Path) -> dict:
         recorder.start()
     c0 = time.process_time()
     for i in range(jogs):
+        simulated[0] = (i + 1) / rate_hz
         sign = 1.0 if (i // 40) % 2 == 0 else -1.0
         session.arm.jog_tool(frame="world", constraint="x", motion="translate", displacement=np.array([sign * 1e-3, 0.0, 0.0]))
         if i % 2 == 0:
@@ -128,7 +131,7 @@ def main_in_process(args: argparse.Namespace) -> int:
         in_process_run(True, 200, Path(tmp))  # warm-up: imports, caches, numba
         for i in range(args.pairs):
             for record in (i % 2 == 0, i % 2 != 0):
-                runs.append(in_process_run(record, args.jogs, Path(tmp)))
+                runs.append(in_process_run(record, args.jogs, Path(tmp), args.rate))
                 print(f"run {len(runs)}: {'recorded' if record else 'unrecorded'} {runs[-1]['cpu_s']:.2f} s CPU", file=sys.stderr)
     on = statistics.median(r["cpu_s"] for r in runs if r["recorded"])
     off = statistics.median(r["cpu_s"] for r in runs if not r["recorded"])
