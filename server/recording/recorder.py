@@ -45,6 +45,7 @@ from shared.wire.telemetry import TelemetryFrame
 log = logging.getLogger(__name__)
 
 _COLLISION = "collision"  # the thinned stream of /events/collision
+_NOTHING = object()
 
 
 def recording_name(cell: str, when: float) -> str:
@@ -148,7 +149,7 @@ class SessionRecorder:
         world_T_tool = np.array(state.world_T_tcp, dtype=float)
         put = self.writer.put
         put(records.VIRTUAL_ARM, t, lambda: records.VirtualArm(q=q.tolist(), world_T_tool=world_T_tool.tolist(), version=state.version))
-        self._arm_moved(records.VIRTUAL_PREFIX, q, t)
+        self._arm_moved(records.VIRTUAL_PREFIX, q, q.tobytes(), t)
 
     def on_telemetry(self, frame: TelemetryFrame) -> None:
         t = self._now()
@@ -158,33 +159,12 @@ class SessionRecorder:
             statement=frame.statement, q=list(frame.q), base_p_tool=list(frame.position), base_rpy_tool=list(frame.rpy),
             gripper=frame.gripper, wrench=list(frame.wrench),
         ))
-        self._arm_moved(records.REMOTE_PREFIX, np.array(frame.q, dtype=float), t)
+        self._arm_moved(records.REMOTE_PREFIX, np.array(frame.q, dtype=float), tuple(frame.q), t)
 
     def on_event(self, event: SessionEvent) -> None:
         t = self._now()
         put = self.writer.put
-        if isinstance(event, SentChanged):
-            put(records.SENT, t, event.sent)
-            for item in self._new_statuses(event.sent.items):
-                put(records.STATUS, t, item)
-                level = "info" if item.status in ("done", "received", "running", "sending") else "warning"
-                number = f"#{item.number}" if item.number is not None else f"(id {item.id})"
-                reason = f": {item.reason}" if item.reason else ""
-                put(records.LOG, t, foxglove.log_message(t, level, f"{number} {item.text}: {item.status}{reason}", "statements"))
-            return
-        if isinstance(event, ProgramChanged):
-            put(records.PROGRAM, t, event.program)
-            return
-        if isinstance(event, RangeSubmitted):
-            put(records.SUBMITTED, t, lambda: self._submitted(event))
-            put(records.LOG, t, foxglove.log_message(t, "info", "submitted: " + "; ".join(event.texts), "statements"))
-            return
-        if isinstance(event, PredictedPathChanged):
-            points = np.asarray(event.predicted.points, dtype=float).reshape(-1, 3)
-            put(records.PREDICTED_PATH, t, lambda: foxglove.poses_in_frame(points, t))
-        elif isinstance(event, Notice):
-            put(records.LOG, t, foxglove.log_message(t, event.level, event.message, "console"))
-        elif isinstance(event, ArmChanged):
+        if isinstance(event, ArmChanged):  # the drag's two events first: every move has them
             self._objects_moved(event, t)
             arm = event.arm
             extra = (arm.blocked, arm.message, arm.held, arm.object_poses)
@@ -197,26 +177,48 @@ class SessionRecorder:
             report = (c.colliding, c.pairs, c.triangles, c.nearest, c.zone, c.zone_object, c.joint_limit)
             self._thinned(_COLLISION, (records.event_topic(event.type), t, event), report, changed=True)
             return
+        elif isinstance(event, SentChanged):
+            put(records.SENT, t, event.sent)
+            for item in self._new_statuses(event.sent.items):
+                put(records.STATUS, t, item)
+                level = "info" if item.status in ("done", "received", "running", "sending") else "warning"
+                number = f"#{item.number}" if item.number is not None else f"(id {item.id})"
+                reason = f": {item.reason}" if item.reason else ""
+                put(records.LOG, t, foxglove.log_message(t, level, f"{number} {item.text}: {item.status}{reason}", "statements"))
+            return
+        elif isinstance(event, ProgramChanged):
+            put(records.PROGRAM, t, event.program)
+            return
+        elif isinstance(event, RangeSubmitted):
+            put(records.SUBMITTED, t, lambda: self._submitted(event))
+            put(records.LOG, t, foxglove.log_message(t, "info", "submitted: " + "; ".join(event.texts), "statements"))
+            return
+        elif isinstance(event, PredictedPathChanged):
+            points = np.asarray(event.predicted.points, dtype=float).reshape(-1, 3)
+            put(records.PREDICTED_PATH, t, lambda: foxglove.poses_in_frame(points, t))
+        elif isinstance(event, Notice):
+            put(records.LOG, t, foxglove.log_message(t, event.level, event.message, "console"))
         put(records.event_topic(event.type), t, event)
 
     # -- thinned streams: at a bounded rate, the last one always --------------------------------
-    def _arm_moved(self, prefix: str, q: np.ndarray, t: int) -> None:
-        self._thinned(prefix, (records.TF, t, lambda: self._transforms(q, prefix, t)), q, changed=False)
+    def _arm_moved(self, prefix: str, q: np.ndarray, same_q: object, t: int) -> None:
+        """``same_q``: ``q`` as a value that compares cheaply (its bytes, its tuple)."""
+        self._thinned(prefix, (records.TF, t, lambda: self._transforms(q, prefix, t)), same_q, changed=False)
 
     def _thinned(self, key: str, item: tuple[str, int, object], value, *, changed: bool) -> None:
         """Put ``item`` of the stream ``key`` now when the stream's last one is a period old, else
         hold it back as the stream's newest. ``value``: what the item shows (an arm's ``q``: one
         equal to the last one put is dropped, the arm stands still), or with ``changed``: what
         must not be thinned (one that differs from the last one put goes out at once, after the
-        one held back)."""
+        one held back). Values compare with ``==``: hand in bytes or tuples, not arrays."""
         t = item[1]
         first = None
         with self._lock:
-            last = self._put_value.get(key)
-            if not changed and last is not None and np.array_equal(last, value):
+            last = self._put_value.get(key, _NOTHING)
+            if not changed and value == last:
                 self._held.pop(key, None)  # standing still: nothing new to draw
                 return
-            if changed and key in self._put_value and value != last:
+            if changed and last is not _NOTHING and value != last:
                 held = self._held.pop(key, None)
                 first = held[0] if held is not None else None
             elif t - self._put_at.get(key, -self._period_ns[key]) < self._period_ns[key]:
