@@ -24,9 +24,11 @@ value on every change, so typing ``-36`` into a joint's box sent ``-3`` first an
 there. :data:`NUMBER_COMMIT_JS`, a script the served page runs before viser's, stops the
 keystroke ``input`` events of those boxes in the capture phase at ``window``, before React's
 listener on the page's root sees them: React keeps the last committed value, the box shows what
-is typed. Enter, leaving the box (the browser's own ``change`` event) or an arrow key with
-something typed dispatch one ``change`` event, which React's change handling reads as the
-value's one edit; Escape puts the committed value back. The slider's track is a separate
+is typed. Enter, leaving the box or an arrow key with something typed replay the edit as one:
+the committed text all selected (one keydown, which the box's number formatter reads its
+selection from), replaced by the typed text in one ``input`` event (a plain ``change`` event
+left the formatter diffing against a stale selection: from a box showing 0 it read no change
+and nothing was sent); Escape puts the committed value back. The slider's track is a separate
 control (pointer events): a drag still moves the joint as it goes.
 
 The program list's clicks and keys (select, shift-select, arrows, Delete, undo/redo) are a second
@@ -71,16 +73,30 @@ NUMBER_COMMIT_JS = """(() => {
   const BOX = ".mantine-NumberInput-input";
   const typed = new WeakSet();      // boxes holding text not committed yet
   const committed = new WeakMap();  // box -> its text at the last commit (for Escape)
+  let passing = false;              // the commit's own input event is on its way
   const isBox = (el) => el instanceof HTMLInputElement && el.matches(BOX);
   const commit = (el) => {
     if (!typed.has(el)) return;
     typed.delete(el);
-    committed.set(el, el.value);
-    el.dispatchEvent(new Event("change", { bubbles: true }));
+    // React's box (react-number-format) diffs each edit against the selection it saw at the last
+    // keydown; after keystrokes it never saw, that diff is wrong (from a box at 0 it read no
+    // change at all). So the commit replays the edit as one: the last committed text all
+    // selected, then replaced by what was typed, in one input event.
+    const text = el.value;
+    const before = committed.has(el) ? committed.get(el) : "";
+    const setValue = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, "value").set;
+    setValue.call(el, before);
+    el.setSelectionRange(0, before.length);
+    el.dispatchEvent(new KeyboardEvent("keydown", { bubbles: true, key: "Unidentified" }));
+    setValue.call(el, text);
+    el.setSelectionRange(text.length, text.length);
+    committed.set(el, text);
+    passing = true;  // this one input event reaches React: the box's one edit
+    try { el.dispatchEvent(new Event("input", { bubbles: true })); } finally { passing = false; }
   };
   window.addEventListener("focusin", (e) => { if (isBox(e.target)) committed.set(e.target, e.target.value); }, true);
   window.addEventListener("input", (e) => {
-    if (!isBox(e.target)) return;
+    if (!isBox(e.target) || passing) return;
     typed.add(e.target);
     e.stopImmediatePropagation();
   }, true);

@@ -89,18 +89,24 @@ class RunningConsole:
 
 
 def start_console(tmp_path: Path, *extra: str, timeout: float = 180.0) -> RunningConsole:
+    return start_served(tmp_path, "up", *extra, timeout=timeout)
+
+
+def start_served(tmp_path: Path, command: str, *extra: str, timeout: float = 180.0, name: str = "console") -> RunningConsole:
+    """``teleprog COMMAND --port P EXTRA...`` (a console: ``up``, ``replay``) as a process, once
+    its ``/api/health`` answers; its output goes to ``tmp_path/NAME.log``."""
     port = free_port()
-    log_path = tmp_path / "console.log"
+    log_path = tmp_path / f"{name}.log"
     log = log_path.open("w")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "server.cli", "up", "--port", str(port), *extra],
+        [sys.executable, "-m", "server.cli", command, *extra, "--port", str(port)],
         stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
         wait_http(f"http://127.0.0.1:{port}/api/health", proc, timeout=timeout)
     except Exception:
         proc.kill()
-        raise RuntimeError(f"console did not start:\n{log_path.read_text()}") from None
+        raise RuntimeError(f"teleprog {command} did not start:\n{log_path.read_text()}") from None
     return RunningConsole(proc, port, log_path)
 
 

@@ -27,19 +27,21 @@ from server.viser_host import uvicorn_config_kwargs
 log = logging.getLogger(__name__)
 
 
-class _AnnouncingServer(uvicorn.Server):
+class AnnouncingServer(uvicorn.Server):
     """A uvicorn server that prints the console's URL once its socket is bound."""
+
+    label = "teleprog console"
 
     async def startup(self, sockets=None) -> None:  # type: ignore[override]
         await super().startup(sockets)
         for server in self.servers:
             for sock in server.sockets:
                 host, port = sock.getsockname()[:2]
-                print(f"teleprog console: open http://{host}:{port}/", flush=True)
+                print(f"{self.label}: open http://{host}:{port}/", flush=True)
                 return
 
 
-def _exit_quietly(signum: int, frame: object) -> None:
+def exit_quietly(signum: int, frame: object) -> None:
     raise SystemExit(0)
 
 
@@ -58,12 +60,12 @@ def run_sedimentation(settings: ConsoleSettings) -> int:
     from server.sedimentation.app import create_sedimentation_app
 
     app = create_sedimentation_app(settings)  # bad starting values fail here, as one line
-    signal.signal(signal.SIGTERM, _exit_quietly)
+    signal.signal(signal.SIGTERM, exit_quietly)
     print("teleprog up: particle-sedimentation view (no robot)", flush=True)
     config = uvicorn.Config(
         app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
     )
-    server = _AnnouncingServer(config)
+    server = AnnouncingServer(config)
     server.run()
     return 0 if server.started else 1
 
@@ -75,7 +77,7 @@ def run_console(args: argparse.Namespace) -> int:
     # uvicorn shuts down gracefully on SIGINT/SIGTERM and then re-raises the signal with the
     # handler that was in place before it; make that handler an orderly exit, so the children
     # are stopped (the finally below) instead of the process dying on the spot.
-    signal.signal(signal.SIGTERM, _exit_quietly)
+    signal.signal(signal.SIGTERM, exit_quietly)
     from shared.cells.loader import load_cell
 
     load_cell(settings.cell)  # a broken cell fails here, before any child starts
@@ -108,7 +110,7 @@ def run_console(args: argparse.Namespace) -> int:
         config = uvicorn.Config(
             app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
         )
-        server = _AnnouncingServer(config)
+        server = AnnouncingServer(config)
         server.run()
         return 0 if server.started else 1
     finally:

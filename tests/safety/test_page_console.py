@@ -110,6 +110,16 @@ def test_numbers_commit_on_enter_or_leaving_and_a_colliding_stream_is_held_back(
     wait_for(lambda: api("GET", "/api/sent").json()["pending"] == 0, 30, what="the streamed statement final")
     api("PUT", "/api/program/auto", json={"on": False}).raise_for_status()
 
+    # a box showing 0 takes a typed number too (the commit once read no change from a 0)
+    joint4 = lambda: api("GET", "/api/state").json()["q_deg"][3]  # noqa: E731 - reading only
+    assert joint4() == pytest.approx(0.0, abs=1e-6)
+    box = ui.number_box("J4")
+    ui.press(box)
+    box.press("Control+a")
+    box.type("12.5")
+    box.press("Enter")
+    wait_for(lambda: joint4() == pytest.approx(12.5), what="J4 at the 12.5 deg typed into its box at 0")
+
 
 def in_viewport(ui: ConsolePage, locator) -> bool:
     box = locator.bounding_box()
