@@ -138,7 +138,7 @@ def in_process_run(record: bool, jogs: int, folder: Path, rate_hz: float = 100.0
     writer_cpu = 0.0
     if recorder is not None:
         stats = recorder.close()
-        written, dropped, writer_cpu = stats.written, stats.dropped, stats.cpu_s
+        written, dropped, writer_cpu = stats.written, stats.dropped, getattr(stats, "cpu_s", 0.0)  # 0: a writer before it
     return {"recorded": record, "cpu_s": time.process_time() - c0, "writer_cpu_s": writer_cpu, "jogs": jogs,
             "written": written, "dropped": dropped}
 
