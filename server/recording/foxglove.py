@@ -206,6 +206,76 @@ def _own_data(robot: Robot):
     return entry[1]
 
 
+_fixed_edges_cache: dict[tuple, tuple[Robot, np.ndarray]] = {}
+
+
+def _fixed_edges(robot: Robot, world_T_base: np.ndarray, tool_T_tcp: np.ndarray | None) -> np.ndarray:
+    """``(2, 7)``: translation and quaternion ``(x, y, z, w)`` of the two edges that do not move
+    with ``q``: ``world_T_base`` and ``link{dof}_T_tcp`` (kept: they are the same on every call)."""
+    world_T_base = np.asarray(world_T_base, dtype=float)
+    tool = None if tool_T_tcp is None else np.asarray(tool_T_tcp, dtype=float)
+    key = (id(robot), world_T_base.tobytes(), None if tool is None else tool.tobytes())
+    cached = _fixed_edges_cache.get(key)
+    if cached is not None and cached[0] is robot:
+        return cached[1]
+    link_T_tcp = _last_link_T_tool(robot)
+    if tool is not None:
+        link_T_tcp = link_T_tcp @ tool
+    edges = np.stack([world_T_base, link_T_tcp])
+    value = np.concatenate([edges[:, :3, 3], quaternions_xyzw(edges[:, :3, :3])], axis=1)
+    if len(_fixed_edges_cache) > 64:
+        _fixed_edges_cache.clear()
+    _fixed_edges_cache[key] = (robot, value)
+    return value
+
+
+_joint_edges_cache: dict[int, tuple[Robot, tuple[int, ...]]] = {}
+
+
+def _joint_edges(robot: Robot) -> tuple[int, ...]:
+    """For each moving edge ``link{i-1}_T_link{i}``: the joint whose placement in its parent
+    joint (pinocchio's ``liMi``) is that edge, where both links sit on their joints' frames and
+    the joint hangs on the one before; 0 where not (the edge is then worked out from the poses)."""
+    cached = _joint_edges_cache.get(id(robot))
+    if cached is not None and cached[0] is robot:
+        return cached[1]
+    model, ids = robot.model, robot.link_frame_ids
+    out = []
+    for a, b in zip(ids[:-1], ids[1:]):
+        fa, fb = model.frames[a], model.frames[b]
+        joint = fb.parentJoint
+        on_joints = fa.placement.isIdentity() and fb.placement.isIdentity()
+        out.append(joint if joint > 0 and on_joints and model.parents[joint] == fa.parentJoint else 0)
+    value = tuple(out)
+    _joint_edges_cache[id(robot)] = (robot, value)
+    return value
+
+
+def _edges(robot: Robot, q, world_T_base: np.ndarray, tool_T_tcp: np.ndarray | None, data: pin.Data | None) -> np.ndarray:
+    """``(dof + 2, 7)``: every edge of the arm's frame chain at ``q`` as translation and
+    quaternion ``(x, y, z, w)``, ``w >= 0``: ``world_T_base``, ``link{i-1}_T_link{i}``, ``link{dof}_T_tcp``.
+
+    It runs for every recorded arm pose: each moving edge is one pinocchio call on the link
+    frames' poses (no 4x4 copies), the fixed edges are kept from the last call.
+    """
+    q = robot.as_q(q)
+    d = data if data is not None else _own_data(robot)
+    pin.framesForwardKinematics(robot.model, d, q)
+    poses, joint_placements = d.oMf, d.liMi
+    ids = robot.link_frame_ids
+    # base_T_links[0] is the base itself (identity) and has no edge of its own: world_T_base is it
+    edges = np.empty((len(ids) + 1, 7))
+    edges[0], edges[-1] = _fixed_edges(robot, world_T_base, tool_T_tcp)
+    for i, joint in enumerate(_joint_edges(robot), start=1):
+        if joint:  # the two links are their joints' frames: the joint's placement is the edge
+            edges[i] = pin.SE3ToXYZQUAT(joint_placements[joint])
+        else:
+            edges[i] = pin.SE3ToXYZQUAT(poses[ids[i - 1]].actInv(poses[ids[i]]))
+    moving = edges[1:-1]
+    moving[:, 3:] *= np.copysign(1.0, moving[:, 6:7])
+    return edges
+
+
 def frame_transforms(
     robot: Robot,
     q: np.ndarray | Sequence[float],
@@ -220,40 +290,23 @@ def frame_transforms(
 
     Frames ``world -> {prefix}/base -> {prefix}/link1 ... {prefix}/link{dof} -> {prefix}/tool``;
     the tool frame is the tool centre point, ``tool_T_tcp`` from the robot's kinematic tool frame
-    (``cell.flange_T_tcp``; identity: the kinematic tool frame itself). ``data``: a pinocchio
-    data of ``robot`` to reuse (default: one per thread, kept here).
+    (``cell.flange_T_tcp``; identity: the kinematic tool frame itself). Each transform is the
+    child's pose in its parent. ``data``: a pinocchio data of ``robot`` to reuse (default: one
+    per thread, kept here).
     """
-    q = robot.as_q(q)
-    base_T_links = robot.link_poses(q, data if data is not None else _own_data(robot))
-    link_T_tcp = _last_link_T_tool(robot)
-    if tool_T_tcp is not None:
-        link_T_tcp = link_T_tcp @ np.asarray(tool_T_tcp, dtype=float)
-    n = len(base_T_links)
-    # parent_T_child for every edge: world_T_base, link{i-1}_T_link{i} = inv(P[i-1]) P[i], link_T_tcp
-    rotations = np.empty((n + 1, 3, 3))
-    translations = np.empty((n + 1, 3))
-    world_T_base = np.asarray(world_T_base, dtype=float)
-    rotations[0], translations[0] = world_T_base[:3, :3], world_T_base[:3, 3]
-    r, p = base_T_links[:, :3, :3], base_T_links[:, :3, 3]
-    r_parent_t = np.swapaxes(r[:-1], 1, 2)
-    np.matmul(r_parent_t, r[1:], out=rotations[1:n])
-    np.matmul(r_parent_t, (p[1:] - p[:-1])[:, :, None], out=translations[1:n, :, None])
-    rotations[n], translations[n] = link_T_tcp[:3, :3], link_T_tcp[:3, 3]
-    # base_T_links[0] is the base itself (identity) and has no edge of its own: world_T_base is it
-    parents, children = _frame_names(prefix, n - 1)
+    edges = _edges(robot, q, world_T_base, tool_T_tcp, data)
+    parents, children = _frame_names(prefix, len(edges) - 2)
     when = stamp(t_ns)
-    quats = quaternions_xyzw(rotations).tolist()
-    moves = translations.tolist()
     return {
         "transforms": [
             {
                 "timestamp": when,
                 "parent_frame_id": parent,
                 "child_frame_id": child,
-                "translation": {"x": m[0], "y": m[1], "z": m[2]},
-                "rotation": {"x": k[0], "y": k[1], "z": k[2], "w": k[3]},
+                "translation": {"x": e[0], "y": e[1], "z": e[2]},
+                "rotation": {"x": e[3], "y": e[4], "z": e[5], "w": e[6]},
             }
-            for parent, child, m, k in zip(parents, children, moves, quats)
+            for parent, child, e in zip(parents, children, edges.tolist())
         ]
     }
 

@@ -4,6 +4,13 @@ one MCAP file (topics in ``server.recording.records``).
 The listeners run on the console's threads and only queue: anything costly (forward kinematics
 for ``/tf``, the scene's meshes, JSON) is a callable the writer's thread runs. The statuses of the
 sent list become one ``/statements/status`` record (and a ``/log`` line) per status reached.
+
+Two streams are thinned where they repeat what another holds, so that recording a drag costs
+the console little: ``/events/arm`` is written when something other than the pose changes (the
+pose of every change is in ``/virtual/arm``: joints, tool pose, version), and ``/events/collision``
+whenever the collision report changes (colliding, pairs, triangles, nearest pair, zone, joint
+limit) and otherwise at most ``distance_rate_hz`` (its distances change with every move), the
+last one always included. ``/tf`` follows each arm at most ``tf_rate_hz``, the last pose always.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import numpy as np
 from server.console.enums import FINAL_SENT
 from server.console.events import (
     ArmChanged,
+    CollisionChanged,
     Notice,
     PredictedPathChanged,
     ProgramChanged,
@@ -35,6 +43,9 @@ from shared.paths import PROJECT_DIR
 from shared.wire.telemetry import TelemetryFrame
 
 log = logging.getLogger(__name__)
+
+_COLLISION = "collision"  # the thinned stream of /events/collision
+_NOTHING = object()
 
 
 def recording_name(cell: str, when: float) -> str:
@@ -65,19 +76,27 @@ class SessionRecorder:
         delay_s: float | None = None,
         on_error: Callable[[str], None] | None = None,
         tf_rate_hz: float = 30.0,
+        distance_rate_hz: float = 10.0,
         **writer_options,
     ) -> None:
         """``tf_rate_hz``: most ``/tf`` messages per second and arm (every change of both arms is in
         ``/virtual/arm`` and ``/remote/telemetry``; the transforms Foxglove draws follow at this
-        rate, the last pose always included)."""
+        rate, the last pose always included); ``distance_rate_hz``: most ``/events/collision``
+        messages per second that differ from the last one in distances only."""
         self.session = session
         self.path = Path(path)
         self._cell_file = cell_file
         self._robot_url, self._delay_s = robot_url, delay_s
-        self.writer = RecordingWriter(self.path, on_error=on_error, idle=self._due_transforms, **writer_options)
-        self._tf_period_ns = int(1e9 / tf_rate_hz)
-        self._tf_latest: dict[str, tuple[np.ndarray, int]] = {}
-        self._tf_sent: dict[str, tuple[np.ndarray | None, int]] = {}
+        self.writer = RecordingWriter(self.path, on_error=on_error, idle=self._due, **writer_options)
+        tf_period = int(1e9 / tf_rate_hz)
+        self._period_ns = {records.VIRTUAL_PREFIX: tf_period, records.REMOTE_PREFIX: tf_period,
+                           _COLLISION: int(1e9 / distance_rate_hz)}
+        # per thinned stream (an arm's /tf, the collision distances): when the last went out and
+        # what it was; the newest one held back, which the writer's idle call sends when due
+        self._put_at: dict[str, int] = {}
+        self._put_value: dict[str, object] = {}
+        self._held: dict[str, tuple[tuple[str, int, object], object]] = {}
+        self._arm_extra: tuple | None = None
         self._unsubscribe: list[Callable[[], None]] = []
         self._status_seen: dict[int, tuple[str, int | None]] = {}
         self._objects_seen: dict[str, list[list[float]]] | None = None
@@ -114,7 +133,7 @@ class SessionRecorder:
         for remove in self._unsubscribe:
             remove()
         self._unsubscribe = []
-        for item in self._due_transforms(force=True):
+        for item in self._due(force=True):
             self.writer.put(*item)
         stats = self.writer.close()
         log.info("recording %s closed: %d messages, %d dropped", self.path, stats.written, stats.dropped)
@@ -130,7 +149,7 @@ class SessionRecorder:
         world_T_tool = np.array(state.world_T_tcp, dtype=float)
         put = self.writer.put
         put(records.VIRTUAL_ARM, t, lambda: records.VirtualArm(q=q.tolist(), world_T_tool=world_T_tool.tolist(), version=state.version))
-        self._arm_moved(records.VIRTUAL_PREFIX, q, t)
+        self._arm_moved(records.VIRTUAL_PREFIX, q, q.tobytes(), t)
 
     def on_telemetry(self, frame: TelemetryFrame) -> None:
         t = self._now()
@@ -140,12 +159,25 @@ class SessionRecorder:
             statement=frame.statement, q=list(frame.q), base_p_tool=list(frame.position), base_rpy_tool=list(frame.rpy),
             gripper=frame.gripper, wrench=list(frame.wrench),
         ))
-        self._arm_moved(records.REMOTE_PREFIX, np.array(frame.q, dtype=float), t)
+        self._arm_moved(records.REMOTE_PREFIX, np.array(frame.q, dtype=float), tuple(frame.q), t)
 
     def on_event(self, event: SessionEvent) -> None:
         t = self._now()
         put = self.writer.put
-        if isinstance(event, SentChanged):
+        if isinstance(event, ArmChanged):  # the drag's two events first: every move has them
+            self._objects_moved(event, t)
+            arm = event.arm
+            extra = (arm.blocked, arm.message, arm.held, arm.object_poses)
+            with self._lock:
+                if extra == self._arm_extra:
+                    return  # the pose alone changed: /virtual/arm has it
+                self._arm_extra = extra
+        elif isinstance(event, CollisionChanged):
+            c = event.collision
+            report = (c.colliding, c.pairs, c.triangles, c.nearest, c.zone, c.zone_object, c.joint_limit)
+            self._thinned(_COLLISION, (records.event_topic(event.type), t, event), report, changed=True)
+            return
+        elif isinstance(event, SentChanged):
             put(records.SENT, t, event.sent)
             for item in self._new_statuses(event.sent.items):
                 put(records.STATUS, t, item)
@@ -154,49 +186,62 @@ class SessionRecorder:
                 reason = f": {item.reason}" if item.reason else ""
                 put(records.LOG, t, foxglove.log_message(t, level, f"{number} {item.text}: {item.status}{reason}", "statements"))
             return
-        if isinstance(event, ProgramChanged):
+        elif isinstance(event, ProgramChanged):
             put(records.PROGRAM, t, event.program)
             return
-        if isinstance(event, RangeSubmitted):
+        elif isinstance(event, RangeSubmitted):
             put(records.SUBMITTED, t, lambda: self._submitted(event))
             put(records.LOG, t, foxglove.log_message(t, "info", "submitted: " + "; ".join(event.texts), "statements"))
             return
-        if isinstance(event, PredictedPathChanged):
+        elif isinstance(event, PredictedPathChanged):
             points = np.asarray(event.predicted.points, dtype=float).reshape(-1, 3)
             put(records.PREDICTED_PATH, t, lambda: foxglove.poses_in_frame(points, t))
         elif isinstance(event, Notice):
             put(records.LOG, t, foxglove.log_message(t, event.level, event.message, "console"))
-        elif isinstance(event, ArmChanged):
-            self._objects_moved(event, t)
         put(records.event_topic(event.type), t, event)
 
-    # -- transforms at a bounded rate, the last pose always ------------------------------------
-    def _arm_moved(self, prefix: str, q: np.ndarray, t: int) -> None:
-        with self._lock:
-            sent_q, sent_t = self._tf_sent.get(prefix, (None, -self._tf_period_ns))
-            if sent_q is not None and np.array_equal(sent_q, q):
-                self._tf_latest.pop(prefix, None)  # standing still: nothing new to draw
-                return
-            if t - sent_t < self._tf_period_ns:
-                self._tf_latest[prefix] = (q, t)  # the writer's idle call sends it when due
-                return
-            self._tf_sent[prefix] = (q, t)
-            self._tf_latest.pop(prefix, None)
-        self.writer.put(records.TF, t, lambda: self._transforms(q, prefix, t))
+    # -- thinned streams: at a bounded rate, the last one always --------------------------------
+    def _arm_moved(self, prefix: str, q: np.ndarray, same_q: object, t: int) -> None:
+        """``same_q``: ``q`` as a value that compares cheaply (its bytes, its tuple)."""
+        self._thinned(prefix, (records.TF, t, lambda: self._transforms(q, prefix, t)), same_q, changed=False)
 
-    def _due_transforms(self, force: bool = False) -> list[tuple[str, int, object]]:
-        """The latest pose of an arm whose transforms are due (the writer's thread, often)."""
-        if not self._tf_latest:
+    def _thinned(self, key: str, item: tuple[str, int, object], value, *, changed: bool) -> None:
+        """Put ``item`` of the stream ``key`` now when the stream's last one is a period old, else
+        hold it back as the stream's newest. ``value``: what the item shows (an arm's ``q``: one
+        equal to the last one put is dropped, the arm stands still), or with ``changed``: what
+        must not be thinned (one that differs from the last one put goes out at once, after the
+        one held back). Values compare with ``==``: hand in bytes or tuples, not arrays."""
+        t = item[1]
+        first = None
+        with self._lock:
+            last = self._put_value.get(key, _NOTHING)
+            if not changed and value == last:
+                self._held.pop(key, None)  # standing still: nothing new to draw
+                return
+            if changed and last is not _NOTHING and value != last:
+                held = self._held.pop(key, None)
+                first = held[0] if held is not None else None
+            elif t - self._put_at.get(key, -self._period_ns[key]) < self._period_ns[key]:
+                self._held[key] = (item, value)  # the writer's idle call sends it when due
+                return
+            self._put_at[key], self._put_value[key] = t, value
+            self._held.pop(key, None)
+        if first is not None:
+            self.writer.put(*first)
+        self.writer.put(*item)
+
+    def _due(self, force: bool = False) -> list[tuple[str, int, object]]:
+        """The held-back newest of each thinned stream that is due (the writer's thread, often)."""
+        if not self._held:
             return []
         now = self._now()
         due = []
         with self._lock:
-            for prefix, (q, t) in list(self._tf_latest.items()):
-                sent_t = self._tf_sent.get(prefix, (None, -self._tf_period_ns))[1]
-                if force or now - sent_t >= self._tf_period_ns:
-                    self._tf_sent[prefix] = (q, t)
-                    del self._tf_latest[prefix]
-                    due.append((records.TF, t, (lambda q=q, prefix=prefix, t=t: self._transforms(q, prefix, t))))
+            for key, (item, value) in list(self._held.items()):
+                if force or now - self._put_at.get(key, -self._period_ns[key]) >= self._period_ns[key]:
+                    self._put_at[key], self._put_value[key] = item[1], value
+                    del self._held[key]
+                    due.append(item)
         return due
 
     # -- derived (small, on the caller's thread) -----------------------------------------------
