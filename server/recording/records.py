@@ -20,7 +20,10 @@ Topics (``TOPICS`` maps each to its schema name):
 * ``/statements/status``: ``StatementStatus``, one per status a sent statement reaches.
 * ``/sent``: the sent list after each change (what the console showed).
 * ``/events/<type>``: every other session event as the console published it
-  (``server.console.events``: regime, collision, divergence, link, control, notice, action, ...).
+  (``server.console.events``: regime, collision, divergence, link, control, notice, action, ...),
+  except two thinned streams that repeat what is elsewhere: ``/events/arm`` only when more than
+  the pose changes (``/virtual/arm`` has every pose), ``/events/collision`` on every change of
+  the report with its distances alone at most 10 Hz, the last one always.
 * ``/recording/dropped``: ``Dropped``, when the writer could not keep up and dropped messages.
 """
 
