@@ -132,38 +132,22 @@ def _stops(p: np.ndarray, t: np.ndarray, s: KeyPointSettings) -> list[tuple[int,
     with np.errstate(divide="ignore", invalid="ignore"):
         speed = np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), np.where(step > 0, np.inf, 0.0))
     slow = speed < s.stop_speed  # slow[i]: between samples i and i + 1
-    out = []
-    i = 0
-    n = len(slow)
-    while i < n:
-        if not slow[i]:
-            i += 1
-            continue
-        j = i
-        while j < n and slow[j]:
-            j += 1
-        if t[j] - t[i] >= s.stop_min_s:
-            out.append((i, j))
-        i = j
-    return out
+    return [(i, j) for i, j in _runs(slow) if t[j] - t[i] >= s.stop_min_s]
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(i, j)`` for each run of True in ``mask``: ``mask[i:j]`` all True, maximal."""
+    edges = np.diff(np.r_[0, np.asarray(mask, dtype=np.int8), 0])
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
 
 
 def _corners(radii: np.ndarray, lo: int, hi: int, s: KeyPointSettings) -> list[int]:
     """The sharpest point of each bend (run of radius < corner_radius) strictly inside [lo, hi]."""
-    sharp = radii[lo: hi + 1] < s.corner_radius
     out = []
-    i = 0
-    while i < len(sharp):
-        if not sharp[i]:
-            i += 1
-            continue
-        j = i
-        while j < len(sharp) and sharp[j]:
-            j += 1
+    for i, j in _runs(radii[lo: hi + 1] < s.corner_radius):
         c = lo + i + int(np.argmin(radii[lo + i: lo + j]))
         if lo < c < hi:
             out.append(c)
-        i = j
     return out
 
 
@@ -199,23 +183,22 @@ def key_points(points, times=None, settings: KeyPointSettings | None = None) -> 
     if t.shape != (n,) or (np.diff(t) < 0).any():
         raise InputError("path times must be one per point and never decrease")
     kinds: dict[int, KeyKind] = {0: "start", n - 1: "end"}
-    breaks = [0, n - 1]
     stops = _stops(p, t, s) if times is not None else []
     for i, j in stops:
         for index, kind in ((i, "stop"), (j, "move")):
             if 0 < index < n - 1:
                 kinds.setdefault(index, kind)
-                breaks.append(index)
+
+    def moving_pieces() -> list[tuple[int, int]]:
+        """Consecutive key points so far, without the spans where the tool rests."""
+        breaks = sorted(kinds)
+        return [(a, b) for a, b in zip(breaks, breaks[1:]) if not any(i <= a and b <= j for i, j in stops)]
+
     radii = arc_radii(p, s.k)
-    breaks = sorted(set(breaks))
-    pieces = [(a, b) for a, b in zip(breaks, breaks[1:]) if not any(i <= a and b <= j for i, j in stops)]
-    for a, b in pieces:
+    for a, b in moving_pieces():
         for c in _corners(radii, a, b, s):
             kinds.setdefault(c, "corner")
-    breaks = sorted(kinds)
-    for a, b in zip(breaks, breaks[1:]):
-        if any(i <= a and b <= j for i, j in stops):
-            continue  # resting: nothing to linearise
+    for a, b in moving_pieces():
         found: list[int] = []
         _linearise(p, a, b, s, found)
         for m in found:
