@@ -25,9 +25,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "tasknet"))  # the SNAKES oracle the tests use
 
 from shared.tasknet.analysis import reachability_graph  # noqa: E402
 from shared.tasknet.ptnet import Arc, Place, PTNet, Transition  # noqa: E402
+from snakes_oracle import snakes_graph  # noqa: E402
 
 
 def ring(n: int) -> PTNet:
@@ -47,21 +49,7 @@ def toggles(m: int) -> PTNet:
 
 
 def snakes_count(net: PTNet) -> int:
-    from snakes.nets import PetriNet, Place as SPlace, StateGraph, Transition as STransition, Value, dot
-
-    sn = PetriNet(net.id)
-    for p in net.places:
-        sn.add_place(SPlace(p.id, [dot] * p.initial))
-    for t in net.transitions:
-        sn.add_transition(STransition(t.id))
-    for a in net.arcs:
-        if a.source in net.place_index:
-            sn.add_input(a.source, a.target, Value(dot))
-        else:
-            sn.add_output(a.target, a.source, Value(dot))
-    graph = StateGraph(sn)
-    graph.build()
-    return len(graph)
+    return len(snakes_graph(net))
 
 
 def best(fn, repeat: int) -> tuple[float, object]:

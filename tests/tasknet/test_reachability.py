@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
+from snakes_oracle import snakes_reachable
 from tasknet_nets import small_nets
 
 from shared.errors import InputError
@@ -26,33 +27,6 @@ from shared.tasknet.ptnet import PTNet, net_from_matrices
 snakes_nets = pytest.importorskip("snakes.nets")
 ROOT = Path(__file__).resolve().parents[2]
 PEG = ROOT / "assets" / "tasks" / "peg_transfer_ce.pnml"
-
-
-def snakes_reachable(net: PTNet) -> set[tuple[int, ...]]:
-    """The reachable markings as SNAKES's StateGraph finds them (black tokens, weights as multi-arcs)."""
-    from snakes.nets import MultiArc, PetriNet, Place, StateGraph, Transition, Value, dot
-
-    def weighted(w: int):
-        return Value(dot) if w == 1 else MultiArc([Value(dot)] * w)
-
-    sn = PetriNet(net.id)
-    for p in net.places:
-        sn.add_place(Place(p.id, [dot] * p.initial))
-    for t in net.transitions:
-        sn.add_transition(Transition(t.id))
-    for a in net.arcs:
-        if a.source in net.place_index:
-            sn.add_input(a.source, a.target, weighted(a.weight))
-        else:
-            sn.add_output(a.target, a.source, weighted(a.weight))
-    graph = StateGraph(sn)
-    graph.build()
-    out = set()
-    for state in graph:
-        graph.goto(state)
-        marking = graph.net.get_marking()
-        out.add(tuple(len(marking(p.id)) if p.id in marking else 0 for p in net.places))
-    return out
 
 
 @settings(max_examples=40, deadline=None)
