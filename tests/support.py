@@ -87,6 +87,26 @@ class RunningConsole:
     def api(self, method: str, path: str, **kwargs) -> httpx.Response:
         return httpx.request(method, self.url + path, timeout=10.0, **kwargs)
 
+    def call(self, method: str, path: str, body: dict | None = None) -> dict:
+        """``api`` for a call that must succeed: its JSON answer (fails the test on anything but 200)."""
+        r = self.api(method, path, json=body)
+        assert r.status_code == 200, f"{method} {path}: {r.status_code} {r.text}"
+        return r.json()
+
+
+def record_three_statements(console: RunningConsole) -> dict:
+    """A short real session: SPEED, a 10 degree DRIVE of joint 1 (most of a second at 20 %) and
+    an EVENT, submitted in the free regime once the link is live; returns the sent list once all
+    three are final."""
+    wait_for(lambda: console.call("GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
+    console.call("PUT", "/api/regime", {"regime": "free"})
+    q = console.call("GET", "/api/arm")["q_deg"]
+    for text in ("SPEED 20 %", f"DRIVE J1 TO {q[0] + 10:.2f} deg", "EVENT recorded"):
+        console.call("POST", "/api/program/insert", {"text": text})
+    console.call("POST", "/api/submit", {"start": 0, "stop": 3})
+    return wait_for(lambda: (s := console.call("GET", "/api/sent"))["pending"] == 0 and len(s["items"]) == 3 and s,
+                    60, 0.1, "every statement final")
+
 
 def start_console(tmp_path: Path, *extra: str, timeout: float = 180.0) -> RunningConsole:
     return start_served(tmp_path, "up", *extra, timeout=timeout)

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from console_page import ConsolePage
 from playwright.sync_api import Page
-from support import RunningConsole, start_console, start_served, stop_process, wait_for
+from support import RunningConsole, record_three_statements, start_console, start_served, stop_process, wait_for
 
 from server.recording import records
 from server.recording.reader import read_recording
@@ -25,12 +25,6 @@ pytestmark = pytest.mark.browser
 GHOST = re.compile(r"remote arm as of (\d+\.\d) s ago \((\w+)(?:, #(\d+))?\)")
 
 
-def _api(console: RunningConsole, method: str, path: str, body: dict | None = None) -> dict:
-    r = console.api(method, path, json=body)
-    assert r.status_code == 200, f"{method} {path}: {r.status_code} {r.text}"
-    return r.json()
-
-
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """One real session's recording: SPEED, a 10 degree DRIVE that takes most of a second, an EVENT."""
@@ -38,15 +32,8 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp / "recordings"
     console = start_console(tmp, "--delay-ms", "200", "--record", str(folder))
     try:
-        wait_for(lambda: _api(console, "GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
-        _api(console, "PUT", "/api/regime", {"regime": "free"})
-        q = _api(console, "GET", "/api/arm")["q_deg"]
-        for text in ("SPEED 20 %", f"DRIVE J1 TO {q[0] + 10:.2f} deg", "EVENT recorded"):
-            _api(console, "POST", "/api/program/insert", {"text": text})
-        _api(console, "POST", "/api/submit", {"start": 0, "stop": 3})
-        wait_for(lambda: (s := _api(console, "GET", "/api/sent"))["pending"] == 0 and len(s["items"]) == 3, 60, 0.1,
-                 "every statement final")
-        wait_for(lambda: _api(console, "GET", "/api/link")["telemetry_received_ago_s"] < 0.3, 10, 0.05, "telemetry")
+        record_three_statements(console)
+        wait_for(lambda: console.call("GET", "/api/link")["telemetry_received_ago_s"] < 0.3, 10, 0.05, "telemetry")
     finally:
         stop_process(console.proc)
     [path] = sorted(folder.glob("*.mcap"))
@@ -136,12 +123,12 @@ def test_the_timeline_shows_the_ghost_and_the_sent_list_as_they_were(replay: Run
 
 def test_the_page_opens_another_recording_and_says_what_a_cut_off_one_lost(replay: RunningConsole, recorded: Path,
                                                                            page: Page) -> None:
-    listed = _api(replay, "GET", "/api/sessions")
+    listed = replay.call("GET", "/api/sessions")
     assert {s["name"] for s in listed["sessions"]} == {recorded.name, "cut-off.mcap"}
     ui = _open(page, replay)
     ui.page.get_by_text("Recordings", exact=True).click()
     ui.choose("Recording", "cut-off.mcap")
     ui.click("Open recording")
     ui.text_appears(r"Cut off: cut-off\.mcap was cut off", timeout=30)
-    assert "cut-off.mcap" in _api(replay, "GET", "/api/replay")["file"]
-    _api(replay, "POST", "/api/replay/open", {"name": recorded.name})  # leave it as it was
+    assert "cut-off.mcap" in replay.call("GET", "/api/replay")["file"]
+    replay.call("POST", "/api/replay/open", {"name": recorded.name})  # leave it as it was

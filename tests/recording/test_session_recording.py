@@ -13,18 +13,12 @@ from pathlib import Path
 
 import pytest
 from foxglove_validate import validate
-from support import PROJECT_DIR, start_console, stop_process, wait_for
+from support import PROJECT_DIR, record_three_statements, start_console, stop_process, wait_for
 
 from server.recording import records
 from server.recording.reader import read_recording
 
 pytestmark = pytest.mark.slow
-
-
-def _api(console, method: str, path: str, body: dict | None = None) -> dict:
-    r = console.api(method, path, json=body)
-    assert r.status_code == 200, f"{method} {path}: {r.status_code} {r.text}"
-    return r.json()
 
 
 def _one_recording(folder: Path) -> Path:
@@ -33,28 +27,16 @@ def _one_recording(folder: Path) -> Path:
     return found[0]
 
 
-def _drive_a_session(console) -> dict:
-    """Three statements through the 200 ms link in the free regime, to their final statuses."""
-    wait_for(lambda: _api(console, "GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
-    _api(console, "PUT", "/api/regime", {"regime": "free"})
-    q = _api(console, "GET", "/api/arm")["q_deg"]
-    for text in ("SPEED 20 %", f"DRIVE J1 TO {q[0] + 10:.2f} deg", "EVENT recorded"):
-        _api(console, "POST", "/api/program/insert", {"text": text})
-    _api(console, "POST", "/api/submit", {"start": 0, "stop": 3})
-    return wait_for(lambda: (s := _api(console, "GET", "/api/sent"))["pending"] == 0 and len(s["items"]) == 3 and s,
-                    60, 0.1, "every statement final")
-
-
 def test_a_headless_session_leaves_one_recording_that_matches_it(tmp_path) -> None:
     folder = tmp_path / "recordings"
     console = start_console(tmp_path, "--delay-ms", "200", "--record", str(folder))
     try:
-        sent = _drive_a_session(console)
-        listed = _api(console, "GET", "/api/sessions")
+        sent = record_three_statements(console)
+        listed = console.call("GET", "/api/sessions")
         assert listed["recording"]["path"] == str(_one_recording(folder).resolve())
         assert [s["name"] for s in listed["sessions"]] == [_one_recording(folder).name]
         # at least one telemetry frame after the last status, so the remote arm's end is recorded
-        wait_for(lambda: _api(console, "GET", "/api/link")["telemetry_received_ago_s"] < 0.5, 10, 0.05, "telemetry")
+        wait_for(lambda: console.call("GET", "/api/link")["telemetry_received_ago_s"] < 0.5, 10, 0.05, "telemetry")
     finally:
         stop_process(console.proc)
     assert console.proc.returncode == 0
@@ -110,13 +92,13 @@ def test_a_console_killed_mid_session_leaves_a_file_that_reads_up_to_the_kill(tm
     folder = tmp_path / "recordings"
     console = start_console(tmp_path, "--delay-ms", "50", "--record", str(folder))
     try:
-        wait_for(lambda: _api(console, "GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
+        wait_for(lambda: console.call("GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
         for _ in range(5):
-            _api(console, "POST", "/api/jog/joint", {"joint": 1, "delta_deg": 1.0})
-        wait_for(lambda: _api(console, "GET", "/api/sessions")["recording"]["written"] > 200, 30, 0.1, "telemetry recorded")
+            console.call("POST", "/api/jog/joint", {"joint": 1, "delta_deg": 1.0})
+        wait_for(lambda: console.call("GET", "/api/sessions")["recording"]["written"] > 200, 30, 0.1, "telemetry recorded")
         path = _one_recording(folder)
         wait_for(lambda: path.stat().st_size > 2000, 10, 0.1, "a chunk on disk")  # the writer closes one a second
-        killed_at = _api(console, "GET", "/api/arm")
+        killed_at = console.call("GET", "/api/arm")
         os.kill(console.proc.pid, signal.SIGKILL)
         console.proc.wait(10)
     finally:
@@ -153,7 +135,7 @@ def test_no_record_writes_nothing(tmp_path) -> None:
     before = set(env_folder.glob("*.mcap"))
     console = start_console(tmp_path, "--no-robot", "--no-record")
     try:
-        listed = _api(console, "GET", "/api/sessions")
+        listed = console.call("GET", "/api/sessions")
         assert listed["recording"] is None
     finally:
         stop_process(console.proc)
