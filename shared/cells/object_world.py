@@ -69,6 +69,9 @@ class ObjectWorld:
         """world_T_object of objects moved from their cell pose and not held."""
         self.held: str | None = None
         self.tcp_T_held: np.ndarray | None = None
+        self.world_T_tcp_inserted: np.ndarray | None = None
+        """Where an insertion's contract leaves the tool (the held object seated), until the
+        gripper lets go: the arm's own end pose after a force-guided task only the robot knows."""
 
     # -- reading -----------------------------------------------------------------------------
     def resolve(self, name: str) -> str | None:
@@ -82,7 +85,7 @@ class ObjectWorld:
         """Where ``name`` is: riding with the tool at ``world_T_tcp`` when held (and the tool pose
         is given), else where it was left, else its cell pose."""
         if name == self.held and self.tcp_T_held is not None and world_T_tcp is not None:
-            return world_T_tcp @ self.tcp_T_held
+            return self.tool_pose(world_T_tcp) @ self.tcp_T_held
         if name in self.placed:
             return self.placed[name]
         return np.asarray(self.cell.object(name).world_T_object, dtype=float)
@@ -91,21 +94,28 @@ class ObjectWorld:
         """Every moved object's pose, the held one at ``world_T_tcp`` (when given)."""
         out = dict(self.placed)
         if self.held is not None and self.tcp_T_held is not None and world_T_tcp is not None:
-            out[self.held] = world_T_tcp @ self.tcp_T_held
+            out[self.held] = self.tool_pose(world_T_tcp) @ self.tcp_T_held
         return out
+
+    def tool_pose(self, world_T_tcp: np.ndarray) -> np.ndarray:
+        """The tool centre point as this world has it: where an insertion left it while the
+        gripper still holds the seated object, else ``world_T_tcp`` (the arm's)."""
+        return self.world_T_tcp_inserted if self.world_T_tcp_inserted is not None else world_T_tcp
 
     # -- changing ----------------------------------------------------------------------------
     def grasp(self, name: str, world_T_tcp: np.ndarray) -> None:
         """Hold ``name`` where it is now, fixed to the tool at ``world_T_tcp``."""
         here = self.world_T_object(name, world_T_tcp)
         self.placed.pop(name, None)
+        self.world_T_tcp_inserted = None
         self.held, self.tcp_T_held = name, invert(world_T_tcp) @ here
 
     def release(self, world_T_tcp: np.ndarray) -> None:
         """Leave the held object where the tool at ``world_T_tcp`` puts it."""
         if self.held is not None and self.tcp_T_held is not None:
-            self.placed[self.held] = world_T_tcp @ self.tcp_T_held
+            self.placed[self.held] = self.tool_pose(world_T_tcp) @ self.tcp_T_held
         self.held, self.tcp_T_held = None, None
+        self.world_T_tcp_inserted = None
 
     def place(self, name: str, world_T_object: np.ndarray) -> None:
         """Put a free object at a pose (a correction from a camera, say)."""
@@ -113,7 +123,9 @@ class ObjectWorld:
 
     def apply_task(self, task: str, args: tuple[str, ...] | list[str], world_T_tcp: np.ndarray) -> bool:
         """What a finished task does to the objects, with the tool at ``world_T_tcp``: grasp*
-        holds its first argument, release* and insert* let go. True when something changed."""
+        holds its first argument, release* lets go where the tool is, insert* seats the held object
+        in the feature named second (still held) or, with no such feature, lets go. True when
+        something changed."""
         name = task.lower()
         if name.startswith("grasp") and args:
             obj = self.resolve(args[0])
@@ -121,10 +133,29 @@ class ObjectWorld:
                 return False
             self.grasp(obj, world_T_tcp)
             return True
-        if (name.startswith("release") or name.startswith("insert")) and self.held is not None:
+        if name.startswith("insert") and self.held is not None:
+            if len(args) > 1 and self._seat(self.held, args[1], world_T_tcp):
+                return True
+            self.release(world_T_tcp)
+            return True
+        if name.startswith("release") and self.held is not None:
             self.release(world_T_tcp)
             return True
         return False
+
+    def _seat(self, name: str, feature: str, world_T_tcp: np.ndarray) -> bool:
+        """An insertion's contract: the robot searches and seats the held object, so it ends in
+        ``feature`` the way it stood in its own feature at load (the peg on the hole's floor),
+        still in the gripper (a release lets go), and the tool where that grip puts it
+        (``world_T_tcp_inserted``). False (nothing changed) for an object with no seat at load
+        or a feature the cell lacks."""
+        hole = next((f for f in self.cell.features.values() if f.name.lower() == feature.lower()), None)
+        seat = _load_seat(self.cell, name)
+        if hole is None or seat is None or self.tcp_T_held is None:
+            return False
+        world_T_seated = np.asarray(hole.world_T_feature, dtype=float) @ seat[1]
+        self.world_T_tcp_inserted = world_T_seated @ invert(self.tcp_T_held)
+        return True
 
     def take_reported(self, world_T_objects: Mapping[str, np.ndarray], held: str | None, world_T_tcp: np.ndarray) -> None:
         """Take objects where a robot reports them: their poses, and the one it holds (fixed to
@@ -133,6 +164,7 @@ class ObjectWorld:
         poses = {k: np.array(v, dtype=float) for k, v in world_T_objects.items() if k in known}
         self.placed.update(poses)
         self.held, self.tcp_T_held = None, None
+        self.world_T_tcp_inserted = None
         if held is not None and held in poses:
             self.held, self.tcp_T_held = held, invert(world_T_tcp) @ poses[held]
             self.placed.pop(held, None)
@@ -141,10 +173,11 @@ class ObjectWorld:
         """Become ``other`` (a re-sync): its placed objects, its held object and grip. What this
         side held and the other does not stays where this side's tool holds it now."""
         if self.held is not None and self.tcp_T_held is not None:
-            self.placed[self.held] = world_T_tcp_self @ self.tcp_T_held
+            self.placed[self.held] = self.tool_pose(world_T_tcp_self) @ self.tcp_T_held
         self.placed.update({k: v.copy() for k, v in other.placed.items()})
         self.held = other.held
         self.tcp_T_held = None if other.tcp_T_held is None else other.tcp_T_held.copy()
+        self.world_T_tcp_inserted = None if other.world_T_tcp_inserted is None else other.world_T_tcp_inserted.copy()
         if self.held is not None:
             self.placed.pop(self.held, None)
 

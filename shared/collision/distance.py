@@ -135,3 +135,35 @@ def tri_tri_distance_np(p: np.ndarray, q: np.ndarray) -> tuple[float, np.ndarray
         return 0.0, nan, nan.copy()
     d2, x, y = tri_tri_dist2(*pt, *qt)
     return float(np.sqrt(d2)), np.array(x), np.array(y)
+
+
+@njit(**JIT)
+def _quad_pair_distance(a, b):
+    """Distance between two planar quads (4 corners each, in order round the edge), each split
+    into two triangles: 0 when they meet."""
+    best = np.inf
+    for i in range(2):
+        p0 = (a[0, 0], a[0, 1], a[0, 2])
+        p1 = (a[1 + i, 0], a[1 + i, 1], a[1 + i, 2])
+        p2 = (a[2 + i, 0], a[2 + i, 1], a[2 + i, 2])
+        for j in range(2):
+            q0 = (b[0, 0], b[0, 1], b[0, 2])
+            q1 = (b[1 + j, 0], b[1 + j, 1], b[1 + j, 2])
+            q2 = (b[2 + j, 0], b[2 + j, 1], b[2 + j, 2])
+            if tri_tri_intersect(p0, p1, p2, q0, q1, q2):
+                return 0.0
+            d2, _x, _y = tri_tri_dist2(p0, p1, p2, q0, q1, q2)
+            if d2 < best:
+                best = d2
+    return np.sqrt(best)
+
+
+@njit(**JIT)
+def quad_pair_distances(a, b):
+    """Distances between quads ``a[k]`` and ``b[k]`` (``(n, 4, 3)`` arrays of corners): the
+    contact test of feature faces (``shared.tasknet.contacts``)."""
+    n = a.shape[0]
+    out = np.empty(n)
+    for k in range(n):
+        out[k] = _quad_pair_distance(a[k], b[k])
+    return out

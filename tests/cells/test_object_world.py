@@ -108,8 +108,18 @@ def test_apply_task_reads_grasp_release_insert_case_insensitively(world: ObjectW
     assert world.held == "peg"
     down = trans(0.0, 0.0, -0.02) @ lifted
     assert world.apply_task("INSERT_PEG", ("PEG", "HOLE2"), down)
+    # an insertion seats the peg in the hole it names, as it stood in HOLE1 at load, still held
+    assert world.held == "peg"
+    hole1, hole2 = (world.cell.features[h].world_T_feature for h in ("HOLE1", "HOLE2"))
+    seated = hole2 @ np.linalg.inv(hole1) @ PEG_CELL_POSE
+    np.testing.assert_allclose(world.world_T_object("peg", down), seated, atol=1e-12)
+    assert world.apply_task("release", (), down)
+    np.testing.assert_allclose(world.world_T_object("peg"), seated, atol=1e-12)
+    # with no hole named it lets go where the tool is
+    world.apply_task("grasp", ("peg",), down)
+    assert world.apply_task("insert", ("peg",), MOTION @ down)
     assert world.held is None
-    np.testing.assert_allclose(world.world_T_object("peg"), trans(0.0, 0.0, -0.02) @ MOTION @ PEG_CELL_POSE, atol=1e-12)
+    np.testing.assert_allclose(world.world_T_object("peg"), MOTION @ seated, atol=1e-12)
 
 
 def test_apply_task_ignores_unknown_objects_and_tasks(world: ObjectWorld) -> None:

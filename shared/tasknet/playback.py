@@ -1,0 +1,81 @@
+"""Recognise the actions of a program by playing it on the virtual cell (``teleprog net
+recognise``): the console's own interpreter and planner give the arm's motion, the object world
+does what the task calls do to the objects (a grasp holds, an insertion seats), and the task
+coordinator recognises the actions from the faces' contacts at every sample.
+
+The statement names of the task calls play no part in the recognition: ``TASK grasp(peg)``
+closes the gripper in the object world and the fingers' contacts decide whether the hand now
+holds the peg; a peg lifted out of a hole by plain DRAW motions is ``part`` as surely as one the
+robot's ``extract_peg`` lifts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from shared.cells.object_world import ObjectWorld
+from shared.language.statements import Statement, TaskCall
+from shared.motion import plan_program
+from shared.motion.frames import CellFrames
+from shared.motion.segment import SegmentKind
+from shared.tasknet.contacts import CellState, ContactModel
+from shared.tasknet.coordinator import RecognisedAction, TaskCoordinator, TaskNet, generate_task_net
+from shared.tasknet.taskspace import TaskSpace
+
+SAMPLE_DT_S = 0.01
+"""The time step (s) at which a planned motion is sampled for recognition."""
+TASK_STEPS = 25
+"""Samples along a task call that moves the arm (``extract_peg``'s retraction)."""
+
+
+@dataclass(frozen=True)
+class ProgramRecognition:
+    actions: tuple[RecognisedAction, ...]
+    m0: tuple[str, ...]
+    final_marking: tuple[str, ...]
+    net: TaskNet
+    samples: int
+    refusal: str | None = None  # the planner's refusal, when the program could not be played whole
+
+
+def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None) -> ProgramRecognition:
+    """Play ``program`` on ``cell`` from ``start_q`` (the cell's home pose) and recognise it."""
+    robot = cell.robot
+    plan = plan_program(program, robot, cell, start_q)
+    frames = CellFrames.from_cell(cell)
+    world = ObjectWorld(cell)
+    contacts = ContactModel(space, cell)
+    coordinator = TaskCoordinator(space, contacts, CellState.of_world(world, frames.world_T_tcp(robot, plan.q_start)))
+    samples = 0
+
+    def observe(q: np.ndarray, t: float, number: int) -> None:
+        nonlocal samples
+        samples += 1
+        coordinator.observe(CellState.of_world(world, frames.world_T_tcp(robot, q)), t, number)
+
+    for seg, t0 in zip(plan.segments, plan.start_times):
+        number = seg.index + 1
+        if seg.kind is SegmentKind.TASK:
+            moved = not np.allclose(seg.q_start, seg.q_end)
+            if moved:
+                for s in np.linspace(0.0, 1.0, TASK_STEPS):
+                    observe(seg.q_start + s * (seg.q_end - seg.q_start), float(t0), number)
+            st = seg.statement
+            assert isinstance(st, TaskCall)
+            world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(robot, seg.q_end))
+            observe(seg.q_end, float(t0), number)
+            continue
+        if seg.duration <= 0.0:
+            continue
+        ts = np.append(np.arange(t0, t0 + seg.duration, SAMPLE_DT_S), t0 + seg.duration)
+        for t, q in zip(ts, plan.sample(ts).q):
+            observe(q, float(t), number)
+    actions = tuple(coordinator.actions)
+    net = generate_task_net(space, coordinator.m0, [a.action for a in actions])
+    return ProgramRecognition(
+        actions, tuple(coordinator.ordered(coordinator.m0)), tuple(coordinator.ordered(coordinator.marking)), net,
+        samples, None if plan.refusal is None else str(plan.refusal),
+    )
