@@ -23,6 +23,7 @@ from server.console.views import (
     RemoteArmView,
     SubmitReadiness,
     SentListView,
+    TaskView,
     TerrainView,
     _View,
 )
@@ -46,6 +47,7 @@ __all__ = [
     "Notice",
     "ActionTaken",
     "RangeSubmitted",
+    "TaskChanged",
     "SessionEvent",
 ]
 
@@ -162,12 +164,19 @@ class RangeSubmitted(_View):
     complete: bool = Field(False, description="the plan covers the whole range (no refusal, no task whose end only the robot knows)")
 
 
+class TaskChanged(_View):
+    """The task panel's state changed: an action recognised, a marking moved, a deviation."""
+
+    type: Literal["task"] = "task"
+    task: TaskView
+
+
 SessionEvent = Annotated[
     Union[
         ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
         PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
         ControlChanged, TerrainChanged, PlacementChanged, ReadinessChanged, Notice, ActionTaken,
-        RangeSubmitted,
+        RangeSubmitted, TaskChanged,
     ],
     Field(discriminator="type"),
 ]

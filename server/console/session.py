@@ -42,6 +42,7 @@ from server.console.modes import Modes
 from server.console.previewer import Previewer
 from server.console.program_desk import ProgramDesk
 from server.console.readiness import Readiness
+from server.console.task_monitor import TaskMonitor
 from server.console.recovery import Recovery
 from server.console.remote import RemoteMirror
 from server.console.robot_seam import RobotLink
@@ -105,6 +106,8 @@ class Session:
         self.terrain.desk, self.terrain.arm = self.program, self.arm
         self.preview.submit, self.preview.submit_refusal = self.dispatch.submit, self.dispatch.refusal
         self.readiness = Readiness(ctx, self.modes, self.program, self.dispatch, self.preview)
+        self.task = TaskMonitor(ctx)
+        self.bus.subscribe(self.task.on_event)
         self._closing = False
 
     def offers(self) -> CellOffers:

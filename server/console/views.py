@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from server.console.enums import DisplayMode, Regime, SentStatus
 from shared.language.statements import Statement
 from shared.robots.jog import JogResult
+from shared.tasknet.cenet import ConditionEventModel
 
 __all__ = [
     "VirtualState",
@@ -416,3 +417,53 @@ class SessionSnapshot(_View):
 def matrix_list(a: np.ndarray) -> list[list[float]]:
     """A pose matrix as the nested lists a view holds."""
     return np.asarray(a, dtype=float).tolist()
+
+
+# -- the task panel (server.console.task_monitor) -------------------------------------------------
+class RuleView(_View):
+    """One STRIPS F-rule of the task space, as written in its task file."""
+
+    name: str
+    params: list[str]
+    pre: list[str]
+    delete: list[str]
+    add: list[str]
+
+
+class ActionView(_View):
+    action: str = Field(description="ground action, e.g. part(PEG,HOLE1)")
+    t: float | None = Field(None, description="console clock (s) when it was recognised")
+    statement: int | None = Field(None, description="robot statement number (robot side) it happened in")
+
+
+class DeviationView(_View):
+    """A robot report the task net does not allow."""
+
+    kind: Literal["missing", "state"] = Field(description="missing: a statement ended without the action it should make; "
+                                                         "state: the robot's cell contradicts its marking")
+    expected: str | None = Field(None, description="the transition (action) that was expected")
+    statement: int | None = None
+    status: str | None = Field(None, description="the statement's final status, for a missing action")
+    message: str
+    observed: dict[str, bool] = Field(default_factory=dict, description="the atoms as the robot's cell shows them")
+    robot_marking: list[str] = Field(default_factory=list)
+    at: float = Field(description="Unix time")
+
+
+class TaskView(_View):
+    """The task net of the cell with the virtual and the robot's markings (thesis 3.5)."""
+
+    available: bool = Field(description="whether the cell has a task file (assets/tasks/<cell>.toml)")
+    error: str | None = None
+    task: str | None = None
+    description: str = ""
+    rules: list[RuleView] = Field(default_factory=list)
+    atoms: list[str] = Field(default_factory=list, description="the task space's places (ground atoms)")
+    virtual_marking: list[str] = Field(default_factory=list, description="atoms true in the virtual cell's marking")
+    robot_marking: list[str] = Field(default_factory=list, description="atoms true in the robot's marking")
+    virtual_actions: list[ActionView] = Field(default_factory=list)
+    robot_actions: list[ActionView] = Field(default_factory=list)
+    enabled: list[str] = Field(default_factory=list, description="actions enabled at the virtual marking")
+    net: ConditionEventModel | None = Field(None, description="the task net generated from the virtual actions (3.5.5)")
+    deviations: list[DeviationView] = Field(default_factory=list)
+    version: int = 0

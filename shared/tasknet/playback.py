@@ -41,12 +41,14 @@ class ProgramRecognition:
     refusal: str | None = None  # the planner's refusal, when the program could not be played whole
 
 
-def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None) -> ProgramRecognition:
-    """Play ``program`` on ``cell`` from ``start_q`` (the cell's home pose) and recognise it."""
+def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None,
+                      world: ObjectWorld | None = None) -> ProgramRecognition:
+    """Play ``program`` on ``cell`` from ``start_q`` (the cell's home pose) with the objects of
+    ``world`` (changed in place; the cell as loaded when None) and recognise it."""
     robot = cell.robot
     plan = plan_program(program, robot, cell, start_q)
     frames = CellFrames.from_cell(cell)
-    world = ObjectWorld(cell)
+    world = ObjectWorld(cell) if world is None else world
     contacts = ContactModel(space, cell)
     coordinator = TaskCoordinator(space, contacts, CellState.of_world(world, frames.world_T_tcp(robot, plan.q_start)))
     samples = 0

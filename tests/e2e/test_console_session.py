@@ -283,6 +283,12 @@ def test_peg_transfer_through_the_api(up: RunningConsole) -> None:
     peg_now = np.array(remote["object_poses"]["peg"])
     hole2 = load_cell(DEFAULT_CELL).features["HOLE2"].world_T_feature
     np.testing.assert_allclose(peg_now[:2, 3], hole2[:2, 3], atol=0.003)  # the peg stands in HOLE2
+    # the task net followed the robot through the transfer (thesis 3.5): the four actions, no deviation
+    task = wait_for("the robot's release recognised", lambda: (t := call(up, "GET", "/api/task"))["robot_actions"]
+                    and t["robot_actions"][-1]["action"] == "release(PEG)" and t)
+    assert [a["action"] for a in task["robot_actions"]] == ["grasp(PEG)", "part(PEG,HOLE1)", "mate(PEG,HOLE2)", "release(PEG)"]
+    assert set(task["robot_marking"]) == {"HANDEEMPTY", "PEGFREE(PEG)", "HOLEEMPTY(HOLE1)", "PEGINHOLE(PEG,HOLE2)"}
+    assert task["deviations"] == [], task["deviations"]
     snap = call(up, "POST", "/api/resync")
     assert snap["arm"]["held"] is None
     np.testing.assert_allclose(snap["arm"]["q"], remote["q"], atol=1e-9)

@@ -1,0 +1,253 @@
+"""The task panel's state (thesis §3.5, §3.1: task coordination and task monitoring): two
+markings of the cell's task net, one following the virtual cell as the operator drives, one
+following the robot's reports, and the deviations between what the robot reports and what the
+net allows.
+
+* Virtual side: every change of the virtual arm (``ArmChanged``: tool pose, held object, object
+  poses) is a state of the virtual cell; its coordinator recognises the actions and moves the
+  virtual marking. The recognised actions generate the task net (§3.5.5) shown on the page.
+* Robot side: every remote arm view (``RemoteArmChanged``: the robot's tool, gripper, held and
+  reported objects) moves the robot's marking the same way.
+* Monitoring: when a range leaves, the console plays it on the virtual cell (the same playback
+  as ``teleprog net recognise``) and expects, per statement, the actions the play recognised.
+  When a statement's final status arrives and the robot's state (the next remote view) has not
+  made an action expected of it, that is a deviation with the transition expected. A robot state
+  the marking contradicts with no enabled transition explaining it (the peg reported free while
+  held) is a deviation too.
+
+No geometry here: ``shared.tasknet`` does the contacts and the net. Listeners run after the
+session's lock is released; this part has its own lock.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+from server.console.context import ConsoleContext
+from server.console.enums import FINAL_SENT
+from server.console.events import ArmChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
+from server.console.views import ActionView, DeviationView, RemoteArmView, RuleView, TaskView
+from shared.cells.object_world import ObjectWorld
+from shared.motion.frames import CellFrames
+from shared.language.parser import parse_program
+from shared.tasknet.contacts import CellState, ContactModel
+from shared.tasknet.coordinator import TaskCoordinator, generate_task_net
+from shared.tasknet.playback import recognise_program
+from shared.tasknet.taskspace import TaskSpace, load_task_space, task_file_for_cell
+
+log = logging.getLogger(__name__)
+
+GRIPPER_CLOSED_M = 0.005
+"""A reported gripper opening (m) below which the robot's gripper counts as closed."""
+MAX_DEVIATIONS = 50
+
+
+@dataclass
+class _Expectation:
+    """The actions a sent statement should make, by the console's play of its range."""
+
+    sent_id: int
+    text: str
+    actions: list[str]
+    checked: bool = False
+    final_seen: bool = False
+    status: str = ""
+    number: int | None = None
+
+
+@dataclass
+class _RobotSide:
+    coordinator: TaskCoordinator
+    expectations: dict[int, _Expectation] = field(default_factory=dict)
+    matched: int = 0  # robot actions already matched to expectations
+
+
+class TaskMonitor:
+    """``session.task``: recognition on both sides and deviations (see the module docstring)."""
+
+    def __init__(self, ctx: ConsoleContext, task_file: str | None = None) -> None:
+        self._ctx = ctx
+        self._lock = threading.Lock()
+        cell = ctx.cell
+        path = task_file or task_file_for_cell(cell.name)
+        self.space: TaskSpace | None = None
+        if path is None:
+            return
+        try:
+            self.space = load_task_space(path)
+            self._contacts = ContactModel(self.space, cell)
+        except Exception as exc:  # a bad task file must not stop the console; the panel says why
+            log.warning("task monitoring off: %s", exc)
+            self.space, self.error = None, str(exc)
+            return
+        self._frames = CellFrames.from_cell(cell)
+        start = CellState.of_world(ObjectWorld(cell), self._frames.world_T_tcp(cell.robot, cell.q_home))
+        self._virtual = TaskCoordinator(self.space, self._contacts, start)
+        self._robot = _RobotSide(TaskCoordinator(self.space, self._contacts, start))
+        self._deviations: list[DeviationView] = []
+        self._deviation_keys: set[str] = set()
+        self._version = 0
+
+    error: str | None = None
+    _last: CellState | None = None  # the robot's cell as its newest remote view shows it
+    _last_remote: RemoteArmView | None = None
+
+    @property
+    def available(self) -> bool:
+        return self.space is not None
+
+    # -- events --------------------------------------------------------------------------------
+    def on_event(self, event: SessionEvent) -> None:
+        if self.space is None:
+            return
+        changed = False
+        with self._lock:
+            if isinstance(event, ArmChanged):
+                changed = self._observe_virtual(event)
+            elif isinstance(event, RemoteArmChanged):
+                changed = self._observe_robot(event)
+            elif isinstance(event, RangeSubmitted):
+                self._expect(event)
+            elif isinstance(event, SentChanged):
+                changed = self._statuses(event)
+            if changed:
+                self._version += 1
+                view = self._view()
+        if changed:
+            self._ctx.bus.emit([TaskChanged(task=view)])
+
+    def _state(self, world_T_tcp, closed: bool, poses: dict) -> CellState:
+        cell = self._ctx.cell
+        objects = {o.name: np.asarray(o.world_T_object, dtype=float) for o in cell.objects}
+        objects.update({k: np.asarray(v, dtype=float) for k, v in poses.items()})
+        return CellState(np.asarray(world_T_tcp, dtype=float), closed, objects)
+
+    def _observe_virtual(self, event: ArmChanged) -> bool:
+        arm = event.arm
+        state = self._state(arm.world_T_tcp, arm.held is not None, arm.object_poses)
+        return bool(self._virtual.observe(state, self._ctx.clock()))
+
+    def _observe_robot(self, event: RemoteArmChanged) -> bool:
+        r = event.remote
+        closed = r.held is not None or r.gripper < GRIPPER_CLOSED_M
+        state = self._state(r.world_T_tcp, closed, r.object_poses)
+        self._last, self._last_remote = state, r
+        side = self._robot
+        fired = side.coordinator.observe(state, self._ctx.clock(), r.statement or None)
+        changed = bool(fired)
+        changed |= self._check_expectations()
+        unexplained = side.coordinator.unexplained(state)
+        if unexplained:
+            expected = self._next_expected()
+            observed = ", ".join(f"{a} {'true' if v else 'false'}" for a, v in unexplained.items())
+            changed |= self._deviate(
+                "state", expected, r.statement or None, "",
+                f"the robot's cell shows {observed}, which no action of the task net allows from its marking"
+                + (f" (expected {expected})" if expected else ""),
+                unexplained,
+            )
+        return changed
+
+    def _expect(self, event: RangeSubmitted) -> None:
+        """Play the submitted range on the virtual cell from where it starts and keep, per
+        statement, the actions the play recognised."""
+        if event.start_q is None:
+            return
+        parsed = parse_program("\n".join(event.texts))
+        if not parsed.ok or len(parsed.statements) != len(event.ids):
+            return
+        world = ObjectWorld(self._ctx.cell)
+        r = self._last_remote
+        if r is not None:
+            world.take_reported({k: np.asarray(v) for k, v in r.object_poses.items()}, r.held, np.asarray(r.world_T_tcp))
+        try:
+            result = recognise_program(parsed.statements, self._ctx.cell, self.space, np.asarray(event.start_q), world)
+        except Exception as exc:
+            log.warning("could not play the submitted range for task monitoring: %s", exc)
+            return
+        per: dict[int, list[str]] = {i: [] for i in range(len(event.ids))}
+        for a in result.actions:
+            if a.statement is not None:
+                per[a.statement - 1].append(a.action)
+        for i, sent_id in enumerate(event.ids):
+            self._robot.expectations[sent_id] = _Expectation(sent_id, event.texts[i], per[i])
+
+    def _statuses(self, event: SentChanged) -> bool:
+        for item in event.sent.items:
+            exp = self._robot.expectations.get(item.id)
+            if exp is not None and item.status in FINAL_SENT and not exp.final_seen:
+                exp.final_seen, exp.status, exp.number = True, item.status.value, item.number
+        return False  # checked on the next remote view, which carries the state the status ends in
+
+    def _check_expectations(self) -> bool:
+        side = self._robot
+        texts = [a.action for a in side.coordinator.actions]
+        changed = False
+        for exp in sorted(side.expectations.values(), key=lambda e: e.sent_id):
+            if exp.checked or not exp.final_seen:
+                continue
+            exp.checked = True
+            for action in exp.actions:
+                if action in texts[side.matched:]:
+                    side.matched = texts.index(action, side.matched) + 1
+                    continue
+                act = self.space.action(action)
+                truth = self._contacts.evaluate(self._last, [*act.add, *act.delete]) if self._last is not None else {}
+                seen = ", ".join(f"{a} {'true' if v else 'false'}" for a, v in truth.items())
+                changed |= self._deviate(
+                    "missing", action, exp.number, exp.status,
+                    f"statement {exp.number if exp.number is not None else '?'} `{exp.text}` ended {exp.status} "
+                    f"without {action}: the robot reports {seen}",
+                    truth,
+                )
+        return changed
+
+    def _next_expected(self) -> str | None:
+        side = self._robot
+        done = len(side.coordinator.actions)
+        virtual = [a.action for a in self._virtual.actions]
+        return virtual[done] if done < len(virtual) else None
+
+    def _deviate(self, kind: str, expected: str | None, statement: int | None, status: str, message: str,
+                 observed: dict[str, bool]) -> bool:
+        key = f"{kind}|{expected}|{statement}|{sorted(observed.items())}"
+        if key in self._deviation_keys:
+            return False
+        self._deviation_keys.add(key)
+        self._deviations.append(DeviationView(
+            kind=kind, expected=expected, statement=statement, status=status or None, message=message,
+            observed=observed, robot_marking=self._robot.coordinator.ordered(self._robot.coordinator.marking),
+            at=self._ctx.wall_clock()))
+        del self._deviations[:-MAX_DEVIATIONS]
+        log.warning("task deviation: %s", message)
+        return True
+
+    # -- views ---------------------------------------------------------------------------------
+    def view(self) -> TaskView:
+        if self.space is None:
+            return TaskView(available=False, error=self.error)
+        with self._lock:
+            return self._view()
+
+    def _view(self) -> TaskView:
+        space = self.space
+        v, r = self._virtual, self._robot.coordinator
+        net = generate_task_net(space, v.m0, [a.action for a in v.actions])
+        return TaskView(
+            available=True,
+            task=space.spec.name,
+            description=space.spec.description,
+            rules=[RuleView(name=x.name, params=list(x.params), pre=x.pre, delete=x.delete, add=x.add) for x in space.spec.rules],
+            atoms=list(space.atom_texts),
+            virtual_marking=v.ordered(v.marking),
+            robot_marking=r.ordered(r.marking),
+            virtual_actions=[ActionView(action=a.action, t=a.t, statement=a.statement) for a in v.actions],
+            robot_actions=[ActionView(action=a.action, t=a.t, statement=a.statement) for a in r.actions],
+            enabled=[a.text for a in v.enabled()],
+            net=net.model,
+            deviations=list(self._deviations),
+            version=self._version,
+        )
