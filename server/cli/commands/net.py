@@ -98,6 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("file", help="net file: .pnml or .json")
     s.add_argument("--svg", metavar="OUT", help="write an SVG picture to OUT ('-' for stdout)")
     s.set_defaults(handler=_cmd_show)
-    from server.cli.commands import net_recognise
+    from server.cli.commands import net_recognise, net_refine
 
     net_recognise.register(nsub)
+    net_refine.register(nsub)
