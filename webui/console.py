@@ -4,7 +4,7 @@ Creates the scene, the ghost and overlays, and the panels, and routes the sessio
 events to them. Layout, docked right: a header panel on top that never scrolls away (STOP, the
 robot's state, the STOP acknowledgement, back away, then the status bar: recovery, link, regime,
 display mode, divergence, notices), and below it the control panel with tabs Drive, Program,
-Preview, Submit. What the 3D view shows depends on the display mode (thesis 4.3.7):
+Preview, Submit, and Task where the cell has a task model. What the 3D view shows depends on the display mode (thesis 4.3.7):
 
 * teleprogramming: the virtual arm where the operator drives it, the remote arm as a ghost
   with its age, the predicted path of sent statements, red triangles while driving;
@@ -45,6 +45,7 @@ from server.console import (
     Session,
     TerrainChanged,
 )
+from server.console.events import TaskChanged
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
 from webui.legend import Legend
@@ -58,6 +59,7 @@ from webui.program_panel import ProgramPanel
 from webui.regime_banner import RegimeBanner
 from webui.scene import CellScene
 from webui.status_bar import StatusBar
+from webui.task_panel import TaskPanel
 from webui.stop_header import StopHeader
 from webui.stream_indicator import StreamIndicator
 from webui.terrain_overlay import TerrainOverlay
@@ -90,6 +92,7 @@ class Console:
     stop: StopHeader | None = None
     banner: RegimeBanner | None = None
     stream: StreamIndicator | None = None
+    task: TaskPanel | None = None
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
@@ -175,6 +178,9 @@ class Console:
             if self.terrain is not None:
                 self.terrain.show_placement(event.placement)
                 self.terrain_overlay.show_target(event.placement)
+        elif isinstance(event, TaskChanged):
+            if self.task is not None:
+                self.task.show(event.task)
         elif isinstance(event, Notice):
             if self.stop is not None:
                 self.stop.show_notice(event)
@@ -268,13 +274,17 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
         preview = PreviewPanel(server, session, actions)
     with tabs.add_tab("Submit", viser.Icon.SEND):
         monitor = MonitorPanel(server, session, actions)
+    task = None
+    if session.task.available:
+        with tabs.add_tab("Task", viser.Icon.SITEMAP):
+            task = TaskPanel(server, session, actions)
     terrain = overlay = None
     if offers.terrain:
         with tabs.add_tab("Terrain", viser.Icon.MOUNTAIN):
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
     console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
-                      terrain, overlay, stop, banner, stream)
+                      terrain, overlay, stop, banner, stream, task)
     # first picture from the session's current state, then follow its events
     snap = session.snapshot()
     for event in (
@@ -287,6 +297,8 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
         console.on_event(event)
     if snap.remote is not None:
         console.on_event(RemoteArmChanged(remote=snap.remote))
+    if task is not None:
+        console.on_event(TaskChanged(task=session.task.view()))
     if terrain is not None:
         console.on_event(TerrainChanged(terrain=session.terrain.view()))
         console.on_event(PlacementChanged(placement=session.terrain.placement_view()))

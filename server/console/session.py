@@ -106,9 +106,16 @@ class Session:
         self.terrain.desk, self.terrain.arm = self.program, self.arm
         self.preview.submit, self.preview.submit_refusal = self.dispatch.submit, self.dispatch.refusal
         self.readiness = Readiness(ctx, self.modes, self.program, self.dispatch, self.preview)
-        self.task = TaskMonitor(ctx)
+        self.task = TaskMonitor(ctx, preview_source=self._preview_source)
         self.bus.subscribe(self.task.on_event)
         self._closing = False
+
+    def _preview_source(self, stop: int):
+        """What the task panel plays for a preview ending at ``stop``: the statements, the
+        program's start and the virtual objects (read under the session's lock)."""
+        with self._ctx.lock:
+            statements = tuple(self.program.editor.state.statements[:stop])
+            return statements, self.program.start.q.copy(), self.arm.object_poses(), self.arm.objects.held
 
     def offers(self) -> CellOffers:
         """What the cell offers (the page builds its panels from this)."""

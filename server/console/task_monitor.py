@@ -8,6 +8,9 @@ net allows.
   virtual marking. The recognised actions generate the task net (§3.5.5) shown on the page.
 * Robot side: every remote arm view (``RemoteArmChanged``: the robot's tool, gripper, held and
   reported objects) moves the robot's marking the same way.
+* Preview: when a range is previewed, the console plays the program up to the range's end once
+  (the same playback) and, as the preview player moves, shows the actions the range makes up to
+  the player's time and the marking where the player stands.
 * Monitoring: when a range leaves, the console plays it on the virtual cell (the same playback
   as ``teleprog net recognise``) and expects, per statement, the actions the play recognised.
   When a statement's final status arrives and the robot's state (the next remote view) has not
@@ -23,19 +26,21 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT
-from server.console.events import ArmChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
-from server.console.views import ActionView, DeviationView, RemoteArmView, RuleView, TaskView
+from server.console.events import ArmChanged, PreviewChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
+from server.console.views import ActionView, DeviationView, PreviewView, RemoteArmView, RuleView, TaskView
 from shared.cells.object_world import ObjectWorld
 from shared.motion.frames import CellFrames
 from shared.language.parser import parse_program
+from shared.tasknet.cenet import ConditionEventModel, ConditionModel, EventModel
 from shared.tasknet.contacts import CellState, ContactModel
 from shared.tasknet.coordinator import TaskCoordinator, generate_task_net
-from shared.tasknet.playback import recognise_program
+from shared.tasknet.playback import ProgramRecognition, recognise_program
 from shared.tasknet.taskspace import TaskSpace, load_task_space, task_file_for_cell
 
 log = logging.getLogger(__name__)
@@ -58,6 +63,20 @@ class _Expectation:
     number: int | None = None
 
 
+PreviewSource = Callable[[int], tuple[Sequence, np.ndarray, dict[str, np.ndarray], str | None]]
+"""``stop -> (the program's first stop statements, its start q, the virtual objects' poses, held)``."""
+
+
+@dataclass
+class _PreviewPlay:
+    """The play of a previewed range: recognised once, read as the player moves."""
+
+    key: tuple
+    start: int
+    recognition: ProgramRecognition | None
+    shown: tuple = ()  # (actions shown, marking) last emitted
+
+
 @dataclass
 class _RobotSide:
     coordinator: TaskCoordinator
@@ -68,8 +87,10 @@ class _RobotSide:
 class TaskMonitor:
     """``session.task``: recognition on both sides and deviations (see the module docstring)."""
 
-    def __init__(self, ctx: ConsoleContext, task_file: str | None = None) -> None:
+    def __init__(self, ctx: ConsoleContext, task_file: str | None = None, preview_source: PreviewSource | None = None) -> None:
         self._ctx = ctx
+        self._preview_source = preview_source
+        self._preview: _PreviewPlay | None = None
         self._lock = threading.Lock()
         cell = ctx.cell
         path = task_file or task_file_for_cell(cell.name)
@@ -90,6 +111,7 @@ class TaskMonitor:
         self._deviations: list[DeviationView] = []
         self._deviation_keys: set[str] = set()
         self._version = 0
+        self._space_net = _space_model(self.space, self._virtual.m0)
 
     error: str | None = None
     _last: CellState | None = None  # the robot's cell as its newest remote view shows it
@@ -104,6 +126,9 @@ class TaskMonitor:
         if self.space is None:
             return
         changed = False
+        source = None
+        if isinstance(event, PreviewChanged) and event.preview.active and self._preview_source is not None:
+            source = self._preview_source(event.preview.stop)  # read outside this part's lock
         with self._lock:
             if isinstance(event, ArmChanged):
                 changed = self._observe_virtual(event)
@@ -113,6 +138,8 @@ class TaskMonitor:
                 self._expect(event)
             elif isinstance(event, SentChanged):
                 changed = self._statuses(event)
+            elif isinstance(event, PreviewChanged):
+                changed = self._follow_preview(event.preview, source)
             if changed:
                 self._version += 1
                 view = self._view()
@@ -150,6 +177,42 @@ class TaskMonitor:
                 unexplained,
             )
         return changed
+
+    def _follow_preview(self, pv: PreviewView, source) -> bool:
+        if not pv.active or source is None:
+            was, self._preview = self._preview is not None, None
+            return was
+        statements, start_q, poses, held = source
+        key = (pv.start, pv.stop, tuple(statements), np.asarray(start_q).tobytes(),
+               tuple(sorted((k, np.asarray(v).tobytes()) for k, v in poses.items())), held)
+        play = self._preview
+        if play is None or play.key != key:
+            play = self._preview = _PreviewPlay(key, pv.start, self._play(statements, start_q, poses, held))
+        shown = self._preview_state(play, pv.t)
+        if shown == play.shown:
+            return False
+        play.shown = shown
+        return True
+
+    def _play(self, statements, start_q, poses, held) -> ProgramRecognition | None:
+        cell = self._ctx.cell
+        world = ObjectWorld(cell)
+        world.take_reported(poses, held, self._frames.world_T_tcp(cell.robot, np.asarray(start_q)))
+        try:
+            return recognise_program(list(statements), cell, self.space, np.asarray(start_q), world)
+        except Exception as exc:  # the preview itself reports planning problems; the panel just goes without
+            log.warning("could not play the previewed range for the task panel: %s", exc)
+            return None
+
+    def _preview_state(self, play: _PreviewPlay, t: float) -> tuple:
+        rec = play.recognition
+        if rec is None:
+            return ((), ())
+        t0 = rec.starts[play.start] if play.start < len(rec.starts) else (rec.starts[-1] if rec.starts else 0.0)
+        upto = [a for a in rec.actions if a.t is None or a.t <= t0 + t + 1e-9]
+        marking = upto[-1].marking if upto else rec.m0
+        in_range = tuple(a for a in upto if a.statement is not None and a.statement > play.start)
+        return (in_range, tuple(marking))
 
     def _expect(self, event: RangeSubmitted) -> None:
         """Play the submitted range on the virtual cell from where it starts and keep, per
@@ -225,6 +288,15 @@ class TaskMonitor:
         log.warning("task deviation: %s", message)
         return True
 
+    def generated_net(self):
+        """The task net of the actions recognised on the virtual cell (§3.5.5) as a P/T net, for
+        saving as PNML or JSON; None for a cell without a task file."""
+        if self.space is None:
+            return None
+        with self._lock:
+            v = self._virtual
+            return generate_task_net(self.space, v.m0, [a.action for a in v.actions]).net
+
     # -- views ---------------------------------------------------------------------------------
     def view(self) -> TaskView:
         if self.space is None:
@@ -248,6 +320,23 @@ class TaskMonitor:
             robot_actions=[ActionView(action=a.action, t=a.t, statement=a.statement) for a in r.actions],
             enabled=[a.text for a in v.enabled()],
             net=net.model,
+            space_net=self._space_net,
+            preview_active=self._preview is not None,
+            preview_actions=[] if self._preview is None else
+            [ActionView(action=a.action, t=a.t, statement=a.statement) for a in self._preview.shown[0]] if self._preview.shown else [],
+            preview_marking=[] if self._preview is None or not self._preview.shown else list(self._preview.shown[1]),
             deviations=list(self._deviations),
             version=self._version,
         )
+
+
+def _space_model(space: TaskSpace, m0: frozenset[str] | set[str]) -> ConditionEventModel:
+    """The grounded task space as a C/E model with short ids (P1.. by atom, T1.. by action),
+    marked as the cell was loaded: the picture the task panel draws."""
+    pid = {a.text: f"P{i + 1}" for i, a in enumerate(space.atoms)}
+    return ConditionEventModel(
+        places=[ConditionModel(id=pid[a.text], predicate=a.text) for a in space.atoms],
+        transitions=[EventModel(id=f"T{j + 1}", action=act.text, pre=[pid[p] for p in act.pre], post=[pid[p] for p in act.post])
+                     for j, act in enumerate(space.actions)],
+        initial_marking=[pid[a.text] for a in space.atoms if a.text in m0],
+    )

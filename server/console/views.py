@@ -465,5 +465,11 @@ class TaskView(_View):
     robot_actions: list[ActionView] = Field(default_factory=list)
     enabled: list[str] = Field(default_factory=list, description="actions enabled at the virtual marking")
     net: ConditionEventModel | None = Field(None, description="the task net generated from the virtual actions (3.5.5)")
+    space_net: ConditionEventModel | None = Field(
+        None, description="the whole task space as a net: a place per atom, a transition per ground action (marking: the cell as loaded)")
+    preview_active: bool = Field(False, description="a preview is shown: preview_actions/preview_marking follow its player")
+    preview_actions: list[ActionView] = Field(
+        default_factory=list, description="actions the previewed range makes up to the player's time (statement: program number)")
+    preview_marking: list[str] = Field(default_factory=list, description="atoms true where the preview player stands")
     deviations: list[DeviationView] = Field(default_factory=list)
     version: int = 0

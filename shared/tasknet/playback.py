@@ -39,6 +39,8 @@ class ProgramRecognition:
     net: TaskNet
     samples: int
     refusal: str | None = None  # the planner's refusal, when the program could not be played whole
+    starts: tuple[float, ...] = ()
+    """Each planned statement's start time (s) on the play's clock, the clock of ``actions[i].t``."""
 
 
 def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None,
@@ -79,5 +81,5 @@ def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, star
     net = generate_task_net(space, coordinator.m0, [a.action for a in actions])
     return ProgramRecognition(
         actions, tuple(coordinator.ordered(coordinator.m0)), tuple(coordinator.ordered(coordinator.marking)), net,
-        samples, None if plan.refusal is None else str(plan.refusal),
+        samples, None if plan.refusal is None else str(plan.refusal), tuple(float(t) for t in plan.start_times),
     )

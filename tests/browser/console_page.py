@@ -235,6 +235,16 @@ class ConsolePage:
         self.text_appears(rf"\b{total} sent, 0 pending", timeout=timeout)
         return self.sent_lines()
 
+    def task_actions(self, kind: str) -> list[str]:
+        """The Task tab's list of recognised actions: ``virtual``, ``preview`` or ``robot``."""
+        return self.page.eval_on_selector_all(
+            f'[data-actions="{kind}"] li', "els => els.map(e => e.getAttribute('data-action'))")
+
+    def task_marking(self, kind: str) -> list[str]:
+        """The atoms the Task tab shows true in the ``virtual``, ``preview`` or ``robot`` marking."""
+        found = self.page.eval_on_selector_all(f'[data-marking="{kind}"]', "els => els.map(e => e.getAttribute('data-atoms'))")
+        return [a for a in found[0].split("|") if a] if found else []
+
     def resync_when_offered(self, timeout: float = 30.0) -> None:
         """Wait for the divergence warning and its re-sync button, then click it."""
         button = self.page.get_by_role("button", name="Re-sync from robot", exact=True)

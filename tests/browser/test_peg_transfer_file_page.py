@@ -5,6 +5,10 @@ submitted with the Submit tab's button, over a real telerobot and link (``telepr
 200``). It ends with every line of the file done on the robot, exactly those lines sent, and the
 peg reported standing in HOLE2 with the gripper empty.
 
+The Task tab (issue 18) follows it: the preview's steps show the task actions the range makes one
+after another, and while the robot runs the file its reports add grasp, part, mate and release
+to the robot's list one by one, the robot's marking moving from HOLE1 to HOLE2.
+
 Before issue 16 the upload was refused ("statement 6 follows the task call at statement 5"): the
 editor let nothing follow any task call while ``teleprog check`` accepted the file. Both now read
 one rule (``shared.language.task_rule``). The session's state is read through GET requests only.
@@ -55,18 +59,32 @@ def upload_program(ui: ConsolePage, path) -> None:
     ui.page.locator("input[type=file]").first.set_input_files(str(path))
 
 
-def preview_to_the_end(ui: ConsolePage, last: int) -> None:
+TASK_ACTIONS = ["grasp(PEG)", "part(PEG,HOLE1)", "mate(PEG,HOLE2)", "release(PEG)"]
+
+
+def distinct(seen: list[list[str]], now: list[str]) -> None:
+    if not seen or seen[-1] != now:
+        seen.append(now)
+
+
+def preview_to_the_end(ui: ConsolePage, last: int, task_seen: list[list[str]] | None = None) -> None:
     """Start the preview of statements 1..last and step through it to its end (the Step button
-    jumps to the end of the statement playing), then End it."""
+    jumps to the end of the statement playing), then End it. ``task_seen`` collects the Task
+    tab's preview actions after each step, as they change."""
     ui.tab("Preview")
     wait_for(lambda: ui.number_box("To statement").input_value() == str(last), what=f"the preview range 1-{last}")
     ui.click("Start preview")
     wait_for(lambda: ui.session()["preview"]["active"], what=f"the preview running (page notice: {ui.notice()!r})")
     for _ in range(3 * last):
+        if task_seen is not None:
+            distinct(task_seen, ui.task_actions("preview"))
         if ui.session()["program"]["confirmed"] == [0, last]:
             break
         ui.click("Step")
     wait_for(lambda: ui.session()["program"]["confirmed"] == [0, last], what="the range previewed to its end")
+    if task_seen is not None:  # at the end the page shows every action of the range
+        wait_for(lambda: (distinct(task_seen, ui.task_actions("preview")), task_seen[-1] == TASK_ACTIONS)[1],
+                 what="the preview's task actions complete on the Task tab")
     ui.text_appears(r"No warnings\.")
     ui.click("End")
     wait_for(lambda: not ui.session()["preview"]["active"], what="the preview ended")
@@ -85,10 +103,25 @@ def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) ->
     ui.text_appears(rf"{len(expected)}: MODE POSITION")  # the program list shows the file's last line
     assert [e["text"] for e in ui.session()["program"]["entries"][:-1]] == expected
 
-    preview_to_the_end(ui, len(expected))
+    ui.tab("Task")  # viser mounts a tab's content when it is first opened; it stays mounted after
+    assert ui.task_marking("robot") == ["HANDEEMPTY", "PEGFREE(PEG)", "PEGINHOLE(PEG,HOLE1)", "HOLEEMPTY(HOLE2)"]
+    preview_seen: list[list[str]] = []
+    preview_to_the_end(ui, len(expected), preview_seen)
+    # the preview's steps showed the actions in order, more than one step apart, ending with all four
+    assert all(s == TASK_ACTIONS[:len(s)] for s in preview_seen), preview_seen
+    assert preview_seen[0] == [] and preview_seen[-1] == TASK_ACTIONS and len(preview_seen) >= 3, preview_seen
     ui.submit_range(1, len(expected))
     wait_for(lambda: len(ui.session()["program"]["entries"]) == 1,
              what=f"the program left for the robot (page notice: {ui.notice()!r})")
+    robot_seen: list[list[str]] = []
+    wait_for(lambda: (distinct(robot_seen, ui.task_actions("robot")), robot_seen[-1] == TASK_ACTIONS)[1],
+             timeout=90, interval=0.1, what=f"the robot's four task actions on the Task tab (seen {robot_seen})")
+    # one by one: each list the page showed is the one before it and one action more (or two at
+    # once where a task call follows another within one telemetry frame)
+    assert all(s == TASK_ACTIONS[:len(s)] for s in robot_seen), robot_seen
+    assert len(robot_seen) >= 4, robot_seen
+    assert "PEGINHOLE(PEG,HOLE2)" in ui.task_marking("robot") and "HOLEEMPTY(HOLE1)" in ui.task_marking("robot")
+    assert ui.page.locator("[data-deviation]").count() == 0
     lines = ui.wait_sent_final(len(expected), timeout=90)
     # the page lists exactly the file's statements, each numbered by the robot in order and done
     assert [line["text"] for line in lines[-len(expected):]] == expected, lines

@@ -289,6 +289,20 @@ def test_peg_transfer_through_the_api(up: RunningConsole) -> None:
     assert [a["action"] for a in task["robot_actions"]] == ["grasp(PEG)", "part(PEG,HOLE1)", "mate(PEG,HOLE2)", "release(PEG)"]
     assert set(task["robot_marking"]) == {"HANDEEMPTY", "PEGFREE(PEG)", "HOLEEMPTY(HOLE1)", "PEGINHOLE(PEG,HOLE2)"}
     assert task["deviations"] == [], task["deviations"]
+    # the generated net of the virtual actions saves as PNML and JSON, both the same net
+    from shared.tasknet.jsonform import net_from_json
+    from shared.tasknet.pnml import pnml_to_net
+
+    as_pnml, as_json = up.api("GET", "/api/task/net"), up.api("GET", "/api/task/net", params={"format": "json"})
+    assert as_pnml.status_code == 200 and as_json.status_code == 200
+    assert as_pnml.headers["content-type"].startswith("application/xml")
+    pnml_net, json_net = pnml_to_net(as_pnml.content), net_from_json(as_json.content)
+    virtual = [a["action"] for a in task["virtual_actions"]]
+    assert virtual, "the virtual cell's actions were recognised"
+    # transitions come in rule order (Table 3.2), one per distinct action recognised
+    assert sorted(t.action for t in json_net.transitions) == sorted(set(virtual)) == sorted(t.action for t in pnml_net.transitions)
+    assert [p.predicate for p in json_net.places] == [p.predicate for p in pnml_net.places]
+    assert up.api("GET", "/api/task/net", params={"format": "png"}).status_code == 422
     snap = call(up, "POST", "/api/resync")
     assert snap["arm"]["held"] is None
     np.testing.assert_allclose(snap["arm"]["q"], remote["q"], atol=1e-9)

@@ -1,0 +1,128 @@
+"""The Task tab (thesis 3.5, issue 18): what the task net makes of the operator's work.
+
+* the actions recognised on the virtual cell, one per line, as they are recognised while driving;
+  during a preview, the actions the previewed range makes up to the player's time;
+* a picture of the task space's net (a place per atom, a transition per ground action) with the
+  marking where the virtual cell (or the preview player) stands: marked places shaded, a token;
+* the robot's marking and the actions its reports made, and every task deviation in red with
+  the transition that was expected;
+* Save buttons for the net generated from the recognised actions (PNML and JSON).
+
+The recognition is the session's (``server.console.task_monitor``); this module only draws its
+``TaskView``. The net picture comes from ``shared.tasknet.layout``, the same drawing as
+``teleprog net show --svg``.
+"""
+
+from __future__ import annotations
+
+import html
+import re
+
+import numpy as np
+import viser
+
+from server.console import Session
+from server.console.views import ActionView, DeviationView, TaskView
+from shared.tasknet.cenet import ConditionEventModel, from_condition_event_model
+from shared.tasknet.jsonform import net_to_json
+from shared.tasknet.layout import net_to_svg
+from shared.tasknet.pnml import net_to_pnml
+from shared.tasknet.ptnet import PTNet
+from webui.actions import Actions
+
+DEVIATION_RED = "#c62828"
+
+
+def _action_items(actions: list[ActionView], kind: str) -> str:
+    if not actions:
+        return '<div style="opacity:.7">none yet</div>'
+    rows = []
+    for i, a in enumerate(actions):
+        where = f" (statement {a.statement})" if a.statement is not None else ""
+        rows.append(f'<li data-action="{html.escape(a.action)}" data-kind="{kind}"><code>{html.escape(a.action)}</code>'
+                    f'<span style="opacity:.7">{html.escape(where)}</span></li>')
+    return f'<ol data-actions="{kind}" style="margin:2px 0 4px 18px;padding:0">{"".join(rows)}</ol>'
+
+
+def _marking(atoms: list[str], kind: str) -> str:
+    text = ", ".join(html.escape(a) for a in atoms) or "(empty)"
+    return f'<div data-marking="{kind}" data-atoms="{html.escape("|".join(atoms))}"><code>{{{text}}}</code></div>'
+
+
+def _deviation(d: DeviationView) -> str:
+    expected = f"<div>expected: <code>{html.escape(d.expected)}</code></div>" if d.expected else ""
+    return (f'<div data-deviation="{d.kind}" data-expected="{html.escape(d.expected or "")}" '
+            f'style="border:2px solid {DEVIATION_RED};color:{DEVIATION_RED};border-radius:4px;padding:3px 6px;margin:3px 0">'
+            f"<b>Task deviation</b>: {html.escape(d.message)}{expected}</div>")
+
+
+def task_html(view: TaskView, picture: str = "") -> str:
+    """The Task tab's block for ``view``; ``picture`` is the net's SVG."""
+    if not view.available:
+        why = f": {view.error}" if view.error else " (no assets/tasks/<cell>.toml)"
+        return f'<div data-task="off">No task model for this cell{html.escape(why)}.</div>'
+    parts = [f'<div data-task="{html.escape(view.task or "")}" data-version="{view.version}" style="font-size:13px">']
+    if view.deviations:
+        parts += [_deviation(d) for d in view.deviations[-5:]]
+    if view.preview_active:
+        parts.append("<b>Preview</b>: actions of the previewed range up to the player")
+        parts.append(_action_items(view.preview_actions, "preview"))
+        parts.append("Marking where the player stands:")
+        parts.append(_marking(view.preview_marking, "preview"))
+    parts.append("<b>Recognised on the virtual cell</b>")
+    parts.append(_action_items(view.virtual_actions, "virtual"))
+    parts.append("Marking:")
+    parts.append(_marking(view.virtual_marking, "virtual"))
+    if view.enabled:
+        parts.append('<div style="opacity:.8">enabled: ' + ", ".join(f"<code>{html.escape(e)}</code>" for e in view.enabled) + "</div>")
+    parts.append(f'<div style="margin-top:4px">{picture}</div>')
+    parts.append("<b>The robot</b> (from its reports)")
+    parts.append(_action_items(view.robot_actions, "robot"))
+    parts.append(_marking(view.robot_marking, "robot"))
+    parts.append("</div>")
+    return "".join(parts)
+
+
+def net_picture(net: PTNet, true_atoms: list[str]) -> str:
+    """The net as SVG, marked where ``true_atoms`` hold, scaled to the panel's width."""
+    marked = set(true_atoms)
+    m = np.array([1 if p.predicate in marked else 0 for p in net.places], dtype=np.int64)
+    svg = net_to_svg(net, m)
+    svg = re.sub(r'<svg ([^>]*?)width="[^"]+" height="[^"]+"', r'<svg \1width="100%"', svg, count=1)
+    return f'<div data-task-net style="width:100%;overflow:auto">{svg}</div>'
+
+
+class TaskPanel:
+    """The Task tab's widgets, added where the caller's GUI context is."""
+
+    def __init__(self, server: viser.ViserServer, session: Session, actions: Actions) -> None:
+        self.session, self.actions = session, actions
+        gui = server.gui
+        self._space: tuple[ConditionEventModel, PTNet] | None = None
+        self.block = gui.add_html(task_html(session.task.view()))
+        self.save_pnml = gui.add_button("Save task net (PNML)", disabled=not session.task.available)
+        self.save_json = gui.add_button("Save task net (JSON)", disabled=not session.task.available)
+        self.save_pnml.on_click(lambda e: self._save(e, "pnml"))
+        self.save_json.on_click(lambda e: self._save(e, "json"))
+
+    def _net(self, view: TaskView) -> PTNet | None:
+        model = view.space_net
+        if model is None:
+            return None
+        if self._space is None or self._space[0] != model:
+            self._space = (model, from_condition_event_model(model, net_id=view.task or "task"))
+        return self._space[1]
+
+    def show(self, view: TaskView) -> None:
+        net = self._net(view)
+        picture = "" if net is None else net_picture(net, view.preview_marking if view.preview_active else view.virtual_marking)
+        self.block.content = task_html(view, picture)
+
+    def _save(self, event: viser.GuiEvent, kind: str) -> None:
+        net = self.session.task.generated_net()
+        if net is None or event.client is None:
+            return
+        content = net_to_pnml(net) if kind == "pnml" else net_to_json(net)
+        event.client.send_file_download(f"task_net.{kind}", content.encode("utf-8"), save_immediately=True)
+        self.actions.show_notice("info", f"saved the task net ({len(net.places)} places, {len(net.transitions)} transitions) "
+                                 f"as task_net.{kind}", None)
