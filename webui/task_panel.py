@@ -6,7 +6,7 @@
   marking where the virtual cell (or the preview player) stands: marked places shaded, a token;
 * the robot's marking and the actions its reports made, and every task deviation in red with
   the transition that was expected;
-* Save buttons for the net generated from the recognised actions (PNML and JSON).
+* Save buttons for the net generated from the recognised actions (PNML, JSON, PNG).
 
 The recognition is the session's (``server.console.task_monitor``); this module only draws its
 ``TaskView``. The net picture comes from ``shared.tasknet.layout``, the same drawing as
@@ -27,6 +27,7 @@ from shared.tasknet.cenet import ConditionEventModel, from_condition_event_model
 from shared.tasknet.jsonform import net_to_json
 from shared.tasknet.layout import net_to_svg
 from shared.tasknet.pnml import net_to_pnml
+from shared.tasknet.raster import net_to_png
 from shared.tasknet.ptnet import PTNet
 from webui.actions import Actions
 
@@ -102,8 +103,10 @@ class TaskPanel:
         self.block = gui.add_html(task_html(session.task.view()))
         self.save_pnml = gui.add_button("Save task net (PNML)", disabled=not session.task.available)
         self.save_json = gui.add_button("Save task net (JSON)", disabled=not session.task.available)
+        self.save_png = gui.add_button("Save task net (PNG)", disabled=not session.task.available)
         self.save_pnml.on_click(lambda e: self._save(e, "pnml"))
         self.save_json.on_click(lambda e: self._save(e, "json"))
+        self.save_png.on_click(lambda e: self._save(e, "png"))
 
     def _net(self, view: TaskView) -> PTNet | None:
         model = view.space_net
@@ -122,7 +125,10 @@ class TaskPanel:
         net = self.session.task.generated_net()
         if net is None or event.client is None:
             return
-        content = net_to_pnml(net) if kind == "pnml" else net_to_json(net)
-        event.client.send_file_download(f"task_net.{kind}", content.encode("utf-8"), save_immediately=True)
+        if kind == "png":
+            content = net_to_png(net)
+        else:
+            content = (net_to_pnml(net) if kind == "pnml" else net_to_json(net)).encode("utf-8")
+        event.client.send_file_download(f"task_net.{kind}", content, save_immediately=True)
         self.actions.show_notice("info", f"saved the task net ({len(net.places)} places, {len(net.transitions)} transitions) "
                                  f"as task_net.{kind}", None)

@@ -20,12 +20,14 @@ def task(session: SessionDep) -> TaskView:
     return session.task.view()
 
 
-@router.get("/task/net", responses={200: {"content": {"application/xml": {}, "application/json": {}}}})
-def task_net(session: SessionDep, format: Literal["pnml", "json"] = "pnml") -> Response:
+@router.get("/task/net", responses={200: {"content": {"application/xml": {}, "application/json": {}, "image/png": {}}}})
+def task_net(session: SessionDep, format: Literal["pnml", "json", "png"] = "pnml") -> Response:
     """The task net generated from the actions recognised on the virtual cell (3.5.5), as PNML
-    (ISO/IEC 15909-2, opens in Petri-net tools) or as this project's JSON form of a net."""
+    (ISO/IEC 15909-2, opens in Petri-net tools), as this project's JSON form of a net, or as a
+    PNG picture with its initial marking."""
     from shared.tasknet.jsonform import net_to_json
     from shared.tasknet.pnml import net_to_pnml
+    from shared.tasknet.raster import net_to_png
 
     net = session.task.generated_net()
     if net is None:
@@ -33,5 +35,8 @@ def task_net(session: SessionDep, format: Literal["pnml", "json"] = "pnml") -> R
     if format == "json":
         return Response(net_to_json(net), media_type="application/json",
                         headers={"Content-Disposition": 'attachment; filename="task_net.json"'})
+    if format == "png":
+        return Response(net_to_png(net), media_type="image/png",
+                        headers={"Content-Disposition": 'attachment; filename="task_net.png"'})
     return Response(net_to_pnml(net), media_type="application/xml",
                     headers={"Content-Disposition": 'attachment; filename="task_net.pnml"'})

@@ -11,11 +11,12 @@ predicate or action under them when there is one.
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from html import escape
 
 import numpy as np
 
-from shared.tasknet.ptnet import PTNet
+from shared.tasknet.ptnet import Arc, PTNet
 
 GAP_X = 170.0
 GAP_Y = 90.0
@@ -61,8 +62,7 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
     """An SVG document of ``net`` showing ``marking`` (M0 when None); marked places are shaded."""
     m = net.m0 if marking is None else net.marking(marking)
     pos = layered_positions(net)
-    width = max((x for x, _ in pos.values()), default=0.0) + MARGIN + 80
-    height = max((y for _, y in pos.values()), default=0.0) + MARGIN + 30
+    width, height = canvas_size(pos)
     out = [
         (
             f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height:.0f}" '
@@ -74,29 +74,15 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
             'orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="#333"/></marker></defs>'
         ),
     ]
-    places = {p.id for p in net.places}
-    pairs = {(a.source, a.target) for a in net.arcs}
-    for a in net.arcs:
-        (x0, y0), (x1, y1) = pos[a.source], pos[a.target]
-        d = float(np.hypot(x1 - x0, y1 - y0)) or 1.0
-        nx, ny = -(y1 - y0) / d, (x1 - x0) / d  # the left normal of the straight line
-        # an arc with a reverse twin, or one running back along the layers, bends to its left
-        bend = 0.0
-        if (a.target, a.source) in pairs:
-            bend = 18.0
-        elif x1 < x0 or (x1 == x0 and y1 < y0):
-            bend = max(30.0, 0.2 * d)
-        cx, cy = (x0 + x1) / 2 + bend * nx, (y0 + y1) / 2 + bend * ny
-        sx, sy = _edge(x0, y0, *_unit(cx - x0, cy - y0), a.source in places)
-        ex, ey = _edge(x1, y1, *_unit(cx - x1, cy - y1), a.target in places)
+    for g in arc_geometry(net, pos):
+        a = g.arc
         out.append(
             f'<path class="arc" data-source="{escape(a.source)}" data-target="{escape(a.target)}" '
-            f'd="M{sx:.1f},{sy:.1f} Q{cx:.1f},{cy:.1f} {ex:.1f},{ey:.1f}" fill="none" stroke="#333" '
+            f'd="M{g.sx:.1f},{g.sy:.1f} Q{g.cx:.1f},{g.cy:.1f} {g.ex:.1f},{g.ey:.1f}" fill="none" stroke="#333" '
             'marker-end="url(#arrow)"/>'
         )
         if a.weight != 1:
-            # the curve's midpoint, nudged off the line
-            mx, my = (sx + 2 * cx + ex) / 4 + 9 * nx, (sy + 2 * cy + ey) / 4 + 9 * ny
+            mx, my = g.weight_at
             out.append(f'<text class="weight" x="{mx:.1f}" y="{my + 4:.1f}" text-anchor="middle">{a.weight}</text>')
     for i, p in enumerate(net.places):
         x, y = pos[p.id]
@@ -122,6 +108,63 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
         )
     out.append("</svg>")
     return "\n".join(out) + "\n"
+
+
+@dataclass(frozen=True)
+class ArcGeometry:
+    """One arc drawn as a quadratic curve: from (sx, sy) on the source's outline through the
+    control point (cx, cy) to (ex, ey) on the target's outline."""
+
+    arc: Arc
+    sx: float
+    sy: float
+    cx: float
+    cy: float
+    ex: float
+    ey: float
+    nx: float  # the left normal of the straight source-target line
+    ny: float
+
+    @property
+    def weight_at(self) -> tuple[float, float]:
+        """Where the weight is written: the curve's midpoint, nudged off the line."""
+        return ((self.sx + 2 * self.cx + self.ex) / 4 + 9 * self.nx, (self.sy + 2 * self.cy + self.ey) / 4 + 9 * self.ny)
+
+    def points(self, n: int = 16) -> list[tuple[float, float]]:
+        """The curve sampled at ``n + 1`` points, source to target."""
+        t = np.linspace(0.0, 1.0, n + 1)
+        x = (1 - t) ** 2 * self.sx + 2 * (1 - t) * t * self.cx + t**2 * self.ex
+        y = (1 - t) ** 2 * self.sy + 2 * (1 - t) * t * self.cy + t**2 * self.ey
+        return list(zip(x.tolist(), y.tolist()))
+
+
+def arc_geometry(net: PTNet, pos: dict[str, tuple[float, float]]) -> list[ArcGeometry]:
+    """Each arc's curve: an arc with a reverse twin, or one running back along the layers,
+    bends to its left so that it does not lie on another."""
+    places = {p.id for p in net.places}
+    pairs = {(a.source, a.target) for a in net.arcs}
+    out = []
+    for a in net.arcs:
+        (x0, y0), (x1, y1) = pos[a.source], pos[a.target]
+        d = float(np.hypot(x1 - x0, y1 - y0)) or 1.0
+        nx, ny = -(y1 - y0) / d, (x1 - x0) / d
+        bend = 0.0
+        if (a.target, a.source) in pairs:
+            bend = 18.0
+        elif x1 < x0 or (x1 == x0 and y1 < y0):
+            bend = max(30.0, 0.2 * d)
+        cx, cy = (x0 + x1) / 2 + bend * nx, (y0 + y1) / 2 + bend * ny
+        sx, sy = _edge(x0, y0, *_unit(cx - x0, cy - y0), a.source in places)
+        ex, ey = _edge(x1, y1, *_unit(cx - x1, cy - y1), a.target in places)
+        out.append(ArcGeometry(a, sx, sy, cx, cy, ex, ey, nx, ny))
+    return out
+
+
+def canvas_size(pos: dict[str, tuple[float, float]]) -> tuple[float, float]:
+    """The picture's width and height for the node positions ``pos``."""
+    width = max((x for x, _ in pos.values()), default=0.0) + MARGIN + 80
+    height = max((y for _, y in pos.values()), default=0.0) + MARGIN + 30
+    return width, height
 
 
 def _edge(x: float, y: float, ux: float, uy: float, is_place: bool) -> tuple[float, float]:

@@ -302,7 +302,10 @@ def test_peg_transfer_through_the_api(up: RunningConsole) -> None:
     # transitions come in rule order (Table 3.2), one per distinct action recognised
     assert sorted(t.action for t in json_net.transitions) == sorted(set(virtual)) == sorted(t.action for t in pnml_net.transitions)
     assert [p.predicate for p in json_net.places] == [p.predicate for p in pnml_net.places]
-    assert up.api("GET", "/api/task/net", params={"format": "png"}).status_code == 422
+    as_png = up.api("GET", "/api/task/net", params={"format": "png"})
+    assert as_png.status_code == 200 and as_png.headers["content-type"] == "image/png"
+    assert as_png.content[:8] == b"\x89PNG\r\n\x1a\n"
+    assert up.api("GET", "/api/task/net", params={"format": "gif"}).status_code == 422
     snap = call(up, "POST", "/api/resync")
     assert snap["arm"]["held"] is None
     np.testing.assert_allclose(snap["arm"]["q"], remote["q"], atol=1e-9)

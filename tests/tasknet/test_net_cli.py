@@ -67,6 +67,65 @@ def test_show_writes_an_svg_and_lists_the_net(tmp_path):
     assert "take: {buffer*2, ready_to_take} -> {ready_to_consume}" in run("show", str(PC)).stdout
 
 
+def test_show_writes_a_png_of_the_net_with_its_initial_marking(tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    from shared.tasknet.layout import arc_geometry, layered_positions
+    from shared.tasknet.pnml import read_pnml
+    from shared.tasknet.raster import MARKED, WHITE
+
+    out = run("show", str(PEG), "--png", str(tmp_path / "peg.png"), "--svg", str(tmp_path / "peg.svg"))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["wrote", str(tmp_path / "peg.svg"), "wrote", str(tmp_path / "peg.png")]
+    data = (tmp_path / "peg.png").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    image = Image.open(tmp_path / "peg.png").convert("RGB")
+    svg = ET.parse(tmp_path / "peg.svg").getroot()
+    # the same canvas as the SVG, 1.5 pixels a unit
+    assert image.size == (round(1.5 * float(svg.get("width"))), round(1.5 * float(svg.get("height"))))
+    net = read_pnml(PEG)
+    pos = layered_positions(net)
+    # every place is drawn where the layout puts it: shaded when M0 marks it, white when not;
+    # a pixel a little off the centre, clear of the token count
+    for p in net.places:
+        x, y = pos[p.id]
+        colour = image.getpixel((round(1.5 * (x + 10)), round(1.5 * y)))
+        assert colour == (MARKED if p.initial else WHITE), (p.id, colour)
+    # transitions are solid bars
+    for t in net.transitions:
+        x, y = pos[t.id]
+        assert image.getpixel((round(1.5 * x), round(1.5 * y))) == (51, 51, 51), t.id
+    # every arc is drawn: ink at its curve's midpoint (or a pixel beside it)
+    pixels = np.asarray(image)
+    for g in arc_geometry(net, pos):
+        mx, my = g.points()[8]
+        near = pixels[round(1.5 * my) - 1:round(1.5 * my) + 2, round(1.5 * mx) - 1:round(1.5 * mx) + 2]
+        assert (near != WHITE).any(), (g.arc.source, g.arc.target)
+
+
+def test_png_shows_the_marking_it_is_given():
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from shared.tasknet.layout import layered_positions
+    from shared.tasknet.pnml import read_pnml
+    from shared.tasknet.raster import MARKED, WHITE, net_to_png
+
+    net = read_pnml(PEG)
+    after = net.fire(net.m0, net.transitions[0].id)
+    image = Image.open(io.BytesIO(net_to_png(net, after, scale=1.0))).convert("RGB")
+    pos = layered_positions(net)
+    for i, p in enumerate(net.places):
+        x, y = pos[p.id]
+        assert image.getpixel((round(x + 10), round(y))) == (MARKED if after[i] else WHITE), p.id
+    assert not np.array_equal(after, net.m0)
+    with pytest.raises(ValueError, match="scale must be positive"):
+        net_to_png(net, scale=0)
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -75,6 +134,8 @@ def test_show_writes_an_svg_and_lists_the_net(tmp_path):
         (["check", "BAD"], "initialMarking must be a non-negative integer"),
         (["check", str(PEG), "--bound", "0"], "--bound must be at least 1"),
         (["show", str(PEG), "--svg", "/nonexistent-dir/x.svg"], "cannot write the picture"),
+        (["show", str(PEG), "--png", "/nonexistent-dir/x.png"], "/nonexistent-dir/x.png: cannot write the picture"),
+        (["show", str(PEG), "--png", "-"], "a PNG cannot go to the terminal"),
     ],
 )
 def test_errors_are_one_line_on_stderr(args, message, tmp_path):

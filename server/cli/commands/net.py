@@ -2,7 +2,8 @@
 
 ``teleprog net check FILE`` prints boundedness, safeness, liveness, terminal markings and the
 number of reachable markings; ``teleprog net show FILE`` prints the net's places and
-transitions, or with ``--svg OUT`` writes a picture of it.
+transitions, or with ``--svg OUT`` / ``--png OUT`` writes a picture of it (both options may be
+given together).
 """
 
 from __future__ import annotations
@@ -56,17 +57,26 @@ def _cmd_show(args: argparse.Namespace) -> int:
     from shared.tasknet.layout import net_to_svg
 
     net = load_net(args.file)
+    pictures = []
     if args.svg is not None:
-        svg = net_to_svg(net)
-        if args.svg == "-":
-            sys.stdout.write(svg)
-            return 0
-        try:
-            with open(args.svg, "w", encoding="utf-8") as fh:
-                fh.write(svg)
-        except OSError as exc:
-            raise InputError(f"{args.svg}: cannot write the picture: {exc.strerror or exc}") from None
-        print(f"wrote {args.svg}")
+        pictures.append((args.svg, net_to_svg(net).encode("utf-8")))
+    if args.png is not None:
+        if args.png == "-":
+            raise InputError("--png: a PNG cannot go to the terminal; give a file name")
+        from shared.tasknet.raster import net_to_png
+
+        pictures.append((args.png, net_to_png(net)))
+    if pictures:
+        for target, data in pictures:
+            if target == "-":
+                sys.stdout.write(data.decode("utf-8"))
+                continue
+            try:
+                with open(target, "wb") as fh:
+                    fh.write(data)
+            except OSError as exc:
+                raise InputError(f"{target}: cannot write the picture: {exc.strerror or exc}") from None
+            print(f"wrote {target}")
         return 0
     print(f"net {net.id}" + (f" ({net.name})" if net.name else ""))
     print("places:")
@@ -94,9 +104,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--bound", type=int, default=100_000, metavar="N",
                    help="the most markings to explore (default 100000); past it, properties come from coverability")
     c.set_defaults(handler=_cmd_check)
-    s = nsub.add_parser("show", help="print a net's places and transitions, or draw it as SVG")
+    s = nsub.add_parser("show", help="print a net's places and transitions, or draw it (SVG, PNG)")
     s.add_argument("file", help="net file: .pnml or .json")
     s.add_argument("--svg", metavar="OUT", help="write an SVG picture to OUT ('-' for stdout)")
+    s.add_argument("--png", metavar="OUT", help="write a PNG picture to OUT")
     s.set_defaults(handler=_cmd_show)
     from server.cli.commands import net_recognise, net_refine
 
