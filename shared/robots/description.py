@@ -12,6 +12,10 @@ from typing import Literal
 
 import numpy as np
 
+#: the default of ``RobotDescription.ik_limit_tolerance`` (rad): none, so that every solution
+#: reaches its target exactly; a robot whose targets come printed to a rounding sets its own
+IK_LIMIT_TOLERANCE = 0.0
+
 DHConvention = Literal["modified", "standard"]
 IKKind = Literal["puma", "rover", "dls"]
 ShapeKind = Literal["box", "sphere", "cylinder", "capsule", "mesh"]
@@ -88,6 +92,10 @@ class RobotDescription:
     link_names: tuple[str, ...] = ()
     # where the DH chain starts in the robot's base frame (4, 4): the mount of the first joint
     base_T_chain: np.ndarray = field(default_factory=lambda: np.eye(4))
+    # how far past a joint limit (rad) an IK solution may fall and still be taken, clamped to the
+    # limit (so it reaches its target only to within that much): a target printed to a rounding
+    # (seed 004's Table 2, to 1 mm) must not lose a solution that sits on a limit
+    ik_limit_tolerance: float = IK_LIMIT_TOLERANCE
 
     @property
     def dof(self) -> int:

@@ -7,7 +7,8 @@
 
 Every solution is returned as ``(dof,)`` radians; with ``respect_limits`` each closed-form
 solution is mapped into the joint ranges (adding multiples of 2 pi where a range is wider than
-a turn) and dropped if it cannot be; solutions are ordered nearest to ``q_near`` first.
+a turn) and dropped if it cannot be, except that one within the robot's ``ik_limit_tolerance``
+of a range is clamped onto its limit; solutions are ordered nearest to ``q_near`` first.
 """
 
 from __future__ import annotations
@@ -30,12 +31,13 @@ def _wrap(q: np.ndarray) -> np.ndarray:
     return np.where(out <= -np.pi, out + 2.0 * np.pi, out)
 
 
-def _in_range_variants(robot: Robot, raw: np.ndarray) -> list[np.ndarray]:
-    """Every ``q + 2 pi k`` (per joint) inside the joint ranges, for each row of ``raw`` (n, dof)."""
+def _in_range_variants(robot: Robot, raw: np.ndarray, tolerance: float = LIMIT_TOLERANCE) -> list[np.ndarray]:
+    """Every ``q + 2 pi k`` (per joint) inside the joint ranges widened by ``tolerance`` (rad),
+    for each row of ``raw`` (n, dof); a value in the widened band is clamped to its limit."""
     wrapped = _wrap(raw)
     two_pi = 2.0 * np.pi
-    k_min = np.ceil((robot.lower - LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
-    k_max = np.floor((robot.upper + LIMIT_TOLERANCE - wrapped) / two_pi).astype(int)
+    k_min = np.ceil((robot.lower - tolerance - wrapped) / two_pi).astype(int)
+    k_max = np.floor((robot.upper + tolerance - wrapped) / two_pi).astype(int)
     feasible = np.all(k_max >= k_min, axis=1)
     single = feasible & np.all(k_max == k_min, axis=1)
     base = np.clip(wrapped + two_pi * k_min, robot.lower, robot.upper)
@@ -89,9 +91,14 @@ def solve_ik(
     position: np.ndarray | None = None,
     q_near: np.ndarray | None = None,
     respect_limits: bool = True,
+    limit_tolerance: float | None = None,
 ) -> list[np.ndarray]:
     """All IK solutions for a tool pose ``base_T_tool`` (4, 4) or, for position-only robots
-    (the rover), a tool ``position`` (3,). Returns an empty list when there is none."""
+    (the rover), a tool ``position`` (3,). Returns an empty list when there is none.
+
+    With ``respect_limits``, a solution up to ``limit_tolerance`` (rad; default the robot
+    file's ``ik_limit_tolerance``, none unless the file sets one) past a joint limit is returned
+    at that limit."""
     if base_T_tool is None and position is None:
         raise InputError("inverse kinematics needs a target pose or position")
     q_ref = np.zeros(robot.dof) if q_near is None else robot.as_q(q_near)
@@ -118,7 +125,13 @@ def solve_ik(
     if not raw:
         return []
     raw_arr = np.stack(raw)
-    candidates = _in_range_variants(robot, raw_arr) if respect_limits else list(_wrap(raw_arr))
+    if limit_tolerance is None:
+        limit_tolerance = robot.description.ik_limit_tolerance
+    if not limit_tolerance >= 0.0:
+        raise InputError(f"the IK limit tolerance must be zero or more; got {limit_tolerance}")
+    candidates = (
+        _in_range_variants(robot, raw_arr, max(limit_tolerance, LIMIT_TOLERANCE)) if respect_limits else list(_wrap(raw_arr))
+    )
     candidates = _dedupe(candidates)
     if len(candidates) > 1:
         order = np.argsort(np.sum((np.stack(candidates) - q_ref) ** 2, axis=1), kind="stable")

@@ -62,6 +62,8 @@ class _KinematicsSpec(_Strict):
     joints: list[_JointSpec] = Field(min_length=1)
     tool: _ToolSpec = _ToolSpec()
     base: _ToolSpec = _ToolSpec()  # pose of the chain's first DH frame in the base frame
+    # how far past a joint limit (angle_unit) an IK solution may fall and still be taken, at the limit
+    ik_limit_tolerance: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
 
 
 class _ShapeSpec(_Strict):
@@ -164,6 +166,7 @@ def load_description(path: Path) -> RobotDescription:
         joints=joints,
         flange_T_tool=pose_to_transform(np.array(kin.tool.xyz) * ls, np.array(kin.tool.rpy) * as_),
         base_T_chain=pose_to_transform(np.array(kin.base.xyz) * ls, np.array(kin.base.rpy) * as_),
+        **({} if kin.ik_limit_tolerance is None else {"ik_limit_tolerance": kin.ik_limit_tolerance * as_}),
         ik=spec.ik,
         shapes={k: tuple(v) for k, v in shapes.items()},
         always_in_contact=tuple((int(a), int(b)) for a, b in spec.always_in_contact),

@@ -119,6 +119,36 @@ def test_cli_ik_ignoring_limits_finds_the_row(q_deg, xyz, count) -> None:
     assert min(angle_gap_deg(s, q_deg) for s in solutions) < 1.0
 
 
+@pytest.mark.parametrize(("q_deg", "xyz", "count"), TABLE2, ids=ROW_IDS)
+def test_cli_ik_within_limits_solves_every_printed_row(q_deg, xyz, count) -> None:
+    """At the position Table 2 prints (1 mm rounding), within the joint ranges: the table's
+    solution count, one of them within 1 deg of the row. Row 1's rounding puts joint 1 0.2 deg
+    past its 0 deg limit; the IK limit tolerance takes it at the limit."""
+    target = base_p(xyz)
+    out = teleprog("kin", "ik", "--robot", "rover", "--xyz", *map(str, target), "--near", *map(str, q_deg), "--json")
+    assert out.returncode == 0, out.stderr
+    solutions = json.loads(out.stdout)["solutions"]
+    assert len(solutions) == count, solutions
+    assert angle_gap_deg(solutions[0], q_deg) < 1.0
+
+
+def test_ik_limit_tolerance_clamps_onto_the_limit_and_can_be_turned_off(rover) -> None:
+    q_deg, xyz, _ = TABLE2[0]
+    target = base_p(xyz)
+    raw = solve_ik(rover, position=target, respect_limits=False)  # nearest to q = 0 first
+    assert 0.0 < np.degrees(raw[0][0]) < 0.5  # joint 1 just past its 0 deg limit
+    (q,) = solve_ik(rover, position=target)
+    assert np.degrees(q[0]) == pytest.approx(0.0, abs=1e-12)  # on the limit, not past it
+    assert rover.within_limits(q)
+    assert solve_ik(rover, position=target, limit_tolerance=0.0) == []
+    out = teleprog("kin", "ik", "--robot", "rover", "--xyz", *map(str, target), "--limit-tolerance", "0")
+    assert out.returncode == 1 and "no inverse-kinematics solution" in out.stderr
+    bad = teleprog("kin", "ik", "--robot", "rover", "--xyz", *map(str, target), "--limit-tolerance", "-1")
+    assert bad.returncode == 1 and bad.stderr.strip().splitlines() == [
+        "teleprog: error: --limit-tolerance must be zero or more degrees; got -1.0"
+    ]
+
+
 def test_cli_fk_then_ik_returns_the_exact_angles() -> None:
     q_deg = TABLE2[7][0]  # -190 deg on joint 3: only inside the range as -190, not +170
     fk = json.loads(teleprog("kin", "fk", "--robot", "rover", "--deg", *map(str, q_deg), "--json").stdout)
@@ -170,7 +200,11 @@ def test_fk_ik_round_trip_within_limits(u) -> None:
     assert solutions, f"no solution for q={np.degrees(q)}"
     for s in solutions:
         assert rover.within_limits(s)
-        np.testing.assert_allclose(rover.fk(s)[:3, 3], target, atol=1e-9)
+        on_limit = np.any(np.isclose(s, rover.lower, rtol=0, atol=1e-12) | np.isclose(s, rover.upper, rtol=0, atol=1e-12))
+        # a solution reaches the target exactly, or it is one the IK limit tolerance (0.5 deg)
+        # clamped onto a limit, off by at most that turn at the arm's reach (< 1 m)
+        reach_error = np.linalg.norm(rover.fk(s)[:3, 3] - target)
+        assert reach_error < (np.radians(0.5) * 1.0 * 3 if on_limit else 1e-9), (np.degrees(s), reach_error)
     np.testing.assert_allclose(solutions[0], q, atol=1e-6)
 
 

@@ -37,15 +37,21 @@ def _cmd_kin_ik(args: argparse.Namespace) -> int:
     scale = 1e-3 if args.unit == "mm" else 1.0
     xyz = np.array(args.xyz) * scale
     q_near = robot.as_q(np.radians(args.near)) if args.near is not None else None
+    tolerance = None
+    if args.limit_tolerance is not None:
+        if not args.limit_tolerance >= 0.0:
+            raise TeleprogError(f"--limit-tolerance must be zero or more degrees; got {args.limit_tolerance}")
+        tolerance = float(np.radians(args.limit_tolerance))
     if robot.description.ik == "rover" or robot.dof < 6:
         if args.rpy is not None:
             raise TeleprogError(f"robot {robot.name!r} positions its tool point only; drop --rpy")
-        solutions = solve_ik(robot, position=xyz, q_near=q_near, respect_limits=not args.ignore_limits)
+        solutions = solve_ik(robot, position=xyz, q_near=q_near, respect_limits=not args.ignore_limits, limit_tolerance=tolerance)
     else:
         if args.rpy is None:
             raise TeleprogError(f"robot {robot.name!r} needs an orientation: add --rpy R P Y (deg)")
         solutions = solve_ik(
-            robot, pose_to_transform(xyz, np.radians(args.rpy)), q_near=q_near, respect_limits=not args.ignore_limits
+            robot, pose_to_transform(xyz, np.radians(args.rpy)), q_near=q_near,
+            respect_limits=not args.ignore_limits, limit_tolerance=tolerance,
         )
     if not solutions:
         limits = "" if args.ignore_limits else " within the joint ranges (try --ignore-limits)"
@@ -85,6 +91,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ik.add_argument("--rpy", type=float, nargs=3, metavar=("R", "P", "Y"), help="tool roll pitch yaw in degrees")
     ik.add_argument("--near", type=float, nargs="+", metavar="Q", help="sort solutions nearest to this joint vector (deg)")
     ik.add_argument("--ignore-limits", action="store_true", help="return every solution, ignoring joint ranges")
+    ik.add_argument("--limit-tolerance", type=float, metavar="DEG",
+                    help="take a solution this far past a joint limit, at the limit (default: the robot file's "
+                         "ik_limit_tolerance; the rover's is 0.5 deg, the others' 0)")
     ik.add_argument("--all-turns", action="store_true",
                     help="list every whole-turn variant of a posture (default: the nearest of each, with their count)")
     ik.add_argument("--json", action="store_true")
