@@ -50,6 +50,20 @@ def _timed(fn, *args, label: str = ""):
     return out, cpu
 
 
+def tree_nodes(tree, binary) -> dict:
+    """Node counts, depths and node-box memory of the multi-way tree against the binary tree over
+    the same triangles: the paper's stated gain from the multi-way tree is storage (its
+    conclusion 3). Vertices and triangles are the same in both; only the nodes differ."""
+    def one(t) -> dict:
+        return {"branching": t.branching, "leaf_size": t.leaf_size, "depth": t.depth,
+                "nodes": int(t.counts.sum()), "leaves": int(t.counts[-1]),
+                "node_boxes_mb": round((t.lo.nbytes + t.hi.nbytes) / 1e6, 2)}
+
+    m, b = one(tree), one(binary)
+    return {"multiway": m, "binary": b, "ratio_nodes_binary_over_multiway": round(b["nodes"] / m["nodes"], 1),
+            "ratio_node_memory_binary_over_multiway": round(b["node_boxes_mb"] / m["node_boxes_mb"], 1)}
+
+
 def _warm_up() -> None:
     """Compile (or load from numba's cache) every kernel on a tiny terrain, outside the timings."""
     from shared.robots.loader import load_robot
@@ -167,6 +181,7 @@ def run(n_points: int, n_poses: int, seed: int, sweep: bool) -> dict:
         "rss_growth_build_both": round(rss_ours, 1),
         "coal_bvh_rss_growth": round(_rss_mb() - rss0 - rss_ours, 1),
     }
+    out["nodes"] = tree_nodes(tree, binary)
 
     robot = load_robot("rover")
     arm = arm_model(robot, 36)
@@ -287,6 +302,10 @@ def main_with(args: argparse.Namespace) -> int:
           f"{p['ratio_triangulate_scipy']}x) + tree {p['tree_s']} s = {p['total_s']} s; coal BVH build {p['coal_bvh_build_s']} s")
     print(f"  wall time: {p['wall_s']}")
     print(f"  memory: tree {m['tree_structure']} MB, binary tree {m['binary_tree_structure']} MB")
+    nm, nb = res["nodes"]["multiway"], res["nodes"]["binary"]
+    print(f"  nodes: multi-way ({nm['branching']}-way, {nm['leaf_size']} a leaf) {nm['nodes']:,} in {nm['depth']} levels, "
+          f"{nm['node_boxes_mb']} MB of boxes; binary (1 a leaf) {nb['nodes']:,} in {nb['depth']} levels, "
+          f"{nb['node_boxes_mb']} MB: {res['nodes']['ratio_nodes_binary_over_multiway']}x the nodes")
     print(f"per pose over {res['poses']} poses (ms, CPU time; wall time in brackets): p50 / p95 / max "
           f"(load average {res.get('load_average', 0):.1f})")
     for k, v in pp.items():
