@@ -54,25 +54,37 @@ class RemoteGhost:
         self.label = server.scene.add_label("/ghost/link1/age", "remote arm: no telemetry yet",
                                             visible=False, anchor="bottom-left", position=(0.0, 0.0, 0.0))
         self.visible = False
+        self._drawn_q: np.ndarray | None = None  # the joint vector the links were last placed at
+        self._drawn_text = ""
 
     def show(self, q: np.ndarray | None, age_s: float | None, what: str = "") -> None:
         """Pose the ghost at ``q`` (rad) and label it with the report's age; ``q`` None hides it."""
         if q is None:
             self.hide()
             return
-        world_T_links = self.world_T_base @ self.robot.link_poses(np.asarray(q, dtype=float), self._data)
+        q = np.array(q, dtype=float)
+        text = f"remote arm {age_text(age_s)}"
+        if what:
+            text += f" ({what})"
+        if self.visible and self._drawn_q is not None and np.array_equal(q, self._drawn_q):
+            # telemetry at 50 Hz mostly repeats a resting arm: no forward kinematics and no node
+            # updates for every client then, only the label when its text changed
+            if text != self._drawn_text:
+                self.label.text = text
+                self._drawn_text = text
+            return
+        world_T_links = self.world_T_base @ self.robot.link_poses(q, self._data)
         with self.server.atomic():
             for node, world_T_link in zip(self._links, world_T_links):
                 place(node, world_T_link)
                 node.visible = True
-            text = f"remote arm {age_text(age_s)}"
-            if what:
-                text += f" ({what})"
             self.label.text = text
             self.label.visible = True
         self.visible = True
+        self._drawn_q, self._drawn_text = q, text
 
     def hide(self) -> None:
+        self._drawn_q = None
         if not self.visible:
             return
         with self.server.atomic():
