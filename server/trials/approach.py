@@ -17,12 +17,12 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from server.trials.results import ModeResult, RunResult, StatementTiming
+from server.trials.results import ApproachReport, ModeResult, RunResult, StatementTiming, summarize
 from server.trials.script import ApproachScript
 from server.trials.session import ConsoleApi, TrialError, TrialSession, wait_until
 
 FINAL = {"done", "failed", "skipped", "aborted", "rejected", "unknown"}
-POLL_S = 0.01
+POLL_S = 0.02  # how often the client reads /api/sent while it waits for a report
 
 
 def _insert_and_submit(api: ConsoleApi, text: str) -> tuple[int, float | None]:
@@ -148,3 +148,17 @@ def run_one(script: ApproachScript, *, index: int, world_seed: int, delay_ms: fl
 def world_seed(seed: int, index: int) -> int:
     """The seed of run ``index``'s world: repeatable alone, different for every run of a batch."""
     return seed * 1000 + index
+
+
+def run_batch(script: ApproachScript, *, runs: int, delay_ms: float, seed: int, log_dir: Path,
+              on_mode: Callable[[str], None] = lambda mode: None,
+              on_run: Callable[[RunResult], None] = lambda run: None) -> ApproachReport:
+    """``runs`` independent runs, one after the other, and their summary; ``on_mode`` is called
+    after each mode that ran, ``on_run`` after each run (a progress bar)."""
+    results = []
+    for i in range(runs):
+        results.append(run_one(script, index=i, world_seed=world_seed(seed, i), delay_ms=delay_ms, log_dir=log_dir,
+                               on_mode=on_mode))
+        on_run(results[-1])
+    return ApproachReport(summary=summarize(results, delay_ms=delay_ms, seed=seed, cell=script.cell,
+                                            statements=len(script.statements)))
