@@ -5,6 +5,14 @@ Virtual sensors (seed 004 §3.1 step 1): each arm part is wrapped by ``n`` segme
 its axis on a circle of the part's largest radius, like laser range finders fixed to the link.
 A part here is a set of coaxial shapes of one link (the forearm and the spectrometer head form
 one part, the paper's E). Each sensor runs from A to B toward the distal end of the part.
+
+Numbering (the paper's Tables 3-5 number the E part's sensors 1..36; its text and Figure 5 do not
+say where 1 sits or which way the count runs, so this is a choice): sensor 1 lies on the part's
+circle in the direction ``u = axis x e`` (``e`` the link frame's x axis, its y axis when the part
+runs along x), and the count runs right-handed about the axis A -> B, 360/n degrees a step. On the
+rover's forearm-and-head part (axis +y of link 3) sensor 1 is on link 3's -z side. At the paper's
+clear pose over flat ground this puts the lowest sensor at number 10, where Table 3 has its
+minimum; the mirrored count fits Table 3 as well (the pattern is symmetric about sensor 10).
 """
 
 from __future__ import annotations
@@ -74,6 +82,11 @@ class ArmModel:
             Bs.append(part.link_B @ world_T_link[:3, :3].T + world_T_link[:3, 3])
             owner.append(np.full(len(part.link_A), p))
         return np.concatenate(As), np.concatenate(Bs), np.concatenate(owner)
+
+
+def head_part(arm: ArmModel) -> int:
+    """Index of the part that carries the instrument head (seed 004's E\\5: forearm and head)."""
+    return next(i for i, p in enumerate(arm.parts) if arm.tool_shape in p.shape_indices)
 
 
 def _axis_extent(shape: ArmShape) -> tuple[np.ndarray, float, float, float]:

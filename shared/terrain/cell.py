@@ -32,21 +32,26 @@ def has_terrain(cell: Cell) -> bool:
 
 
 def cell_terrain_mesh(cell: Cell) -> TerrainMesh:
-    """The cell's terrain mesh in world coordinates."""
+    """The cell's terrain mesh in world coordinates: every mesh shape of the ``terrain`` object
+    (a ground and a stone on it, say), posed and joined into one triangle set."""
     obj = next((o for o in cell.objects if o.name == TERRAIN_OBJECT), None)
     if obj is None:
         raise InputError(f"cell {cell.name!r} has no object named {TERRAIN_OBJECT!r}")
-    shape = next((s for s in obj.shapes if s.kind == "mesh"), None)
-    if shape is None:
+    shapes = [s for s in obj.shapes if s.kind == "mesh"]
+    if not shapes:
         raise InputError(f"cell {cell.name!r}: object {TERRAIN_OBJECT!r} has no mesh shape")
     from pathlib import Path
 
-    vertices, faces = read_ply(Path(shape.mesh_path))
-    if faces is None or len(faces) == 0:
-        raise InputError(f"{shape.mesh_path}: the terrain mesh has no triangles")
-    world_T_mesh = obj.world_T_object @ shape.link_T_shape
-    v = (vertices * np.asarray(shape.scale)) @ world_T_mesh[:3, :3].T + world_T_mesh[:3, 3]
-    return TerrainMesh(np.ascontiguousarray(v), np.ascontiguousarray(faces, dtype=np.int32))
+    verts, tris, n = [], [], 0
+    for shape in shapes:
+        vertices, faces = read_ply(Path(shape.mesh_path))
+        if faces is None or len(faces) == 0:
+            raise InputError(f"{shape.mesh_path}: the terrain mesh has no triangles")
+        world_T_mesh = obj.world_T_object @ shape.link_T_shape
+        verts.append((vertices * np.asarray(shape.scale)) @ world_T_mesh[:3, :3].T + world_T_mesh[:3, 3])
+        tris.append(np.asarray(faces, dtype=np.int64) + n)
+        n += len(vertices)
+    return TerrainMesh(np.ascontiguousarray(np.concatenate(verts)), np.ascontiguousarray(np.concatenate(tris), dtype=np.int32))
 
 
 def load_cell_terrain(cell: Cell, n_sensors: int = 36) -> CellTerrain:

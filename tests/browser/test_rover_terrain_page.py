@@ -99,12 +99,12 @@ def test_click_on_the_terrain_picks_the_target(ui: ConsolePage) -> None:
 def test_typed_ground_position_placement_enters_the_program(ui: ConsolePage) -> None:
     ui.tab("Terrain")
     ui.set_number("Target x (mm)", 700)
-    ui.set_number("Target y (mm)", -100)
+    ui.set_number("Target y (mm)", 0)
     ui.click("Plan at ground position")
     placed = wait_for(lambda: (p := ui.console.api("GET", "/api/terrain/placement").json())
-                      and abs(p["world_p_target"][0] - 0.7) < 1e-9 and p, what="placement at (700, -100)")
+                      and abs(p["world_p_target"][0] - 0.7) < 1e-9 and p, what="placement at (700, 0)")
     assert placed["candidates"], placed["message"]
-    ui.text_appears(r"Target \(700\.0, -100\.0, [\d.-]+\) mm: \d+ safe configuration")
+    ui.text_appears(r"Target \(700\.0, -?0\.0, [\d.-]+\) mm: \d+ safe configuration")
     before = len(ui.session()["program"]["entries"])
     ui.click("Insert placement program")
     program = wait_for(lambda: (e := ui.session()["program"]["entries"]) and len(e) > before and e, what="program inserted")
@@ -118,7 +118,7 @@ def test_typed_ground_position_placement_enters_the_program(ui: ConsolePage) -> 
 
 def test_arm_on_the_ground_shows_red_triangles_and_the_warning(ui: ConsolePage) -> None:
     ui.tab("Drive")
-    for joint, value in (("J1", -69.5), ("J2", 3.0), ("J3", -43.0)):
+    for joint, value in (("J1", -40.0), ("J2", -40.0), ("J3", -200.0)):
         ui.set_number(joint, value)
         wait_for(lambda: abs(ui.session()["arm"]["q_deg"][int(joint[1]) - 1] - value) < 0.2, what=f"{joint} at {value}")
         time.sleep(0.2)

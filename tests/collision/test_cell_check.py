@@ -20,7 +20,7 @@ from shared.terrain.ground import GroundChecker
 
 ROVER_TERRAIN = ASSETS_DIR / "cells" / "rover_terrain.toml"
 # tests/server/test_terrain_session.py: the instrument arm's last link lies on the ground
-Q_ON_GROUND = np.radians([-69.5, 3.0, -43.0])
+Q_ON_GROUND = np.radians([-40.0, -40.0, -200.0])
 _RANK = {"free": 0, "quasi": 1, "operation": 2}
 
 

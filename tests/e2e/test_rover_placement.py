@@ -31,7 +31,7 @@ def up(tmp_path):
 def test_placement_program_runs_on_the_telerobot(up) -> None:
     support.wait_for(lambda: call(up, "GET", "/api/link")["connected"], timeout=60, what="the link")
     call(up, "PUT", "/api/regime", {"regime": "quasi"})  # program, preview, confirm, send
-    placed = call(up, "POST", "/api/terrain/placement", {"ground_mm": [700, -100]})
+    placed = call(up, "POST", "/api/terrain/placement", {"ground_mm": [700, 0]})
     assert placed["candidates"], placed["message"]
     program = call(up, "POST", "/api/terrain/placement/insert")
     n = program["empty_index"]

@@ -147,7 +147,7 @@ def test_the_operation_regime_takes_the_rover_placement_program(rover_session: S
     fake = FakeRobot(clock, loop)
     session.attach_robot(fake, loop)
     try:
-        placement = session.terrain.place_instrument(ground_xy=(0.70, -0.10))
+        placement = session.terrain.place_instrument(ground_xy=(0.70, 0.0))
         session.terrain.insert_placement()
         assert lines(session) == placement.program
         session.modes.set_regime_override(Regime.OPERATION)

@@ -17,9 +17,9 @@ from shared.terrain.cell import load_cell_terrain
 from shared.terrain.ground import GroundChecker
 
 ROVER_TERRAIN = ASSETS_DIR / "cells" / "rover_terrain.toml"
-# found by sampling the joint ranges: the instrument arm's last link lies on the ground
-Q_ON_GROUND = np.radians([-69.5, 3.0, -43.0])
-TARGET_XY = (0.70, -0.10)  # m, reachable ground in front of the rover
+# found by sampling the joint ranges: the arm deployed, the instrument head 36 mm into the ground
+Q_ON_GROUND = np.radians([-40.0, -40.0, -200.0])
+TARGET_XY = (0.70, 0.0)  # m, reachable ground in front of the rover
 
 
 @pytest.fixture(scope="module")
@@ -148,7 +148,7 @@ def test_terrain_endpoints(rover_cell, tmp_path) -> None:
         assert bad.status_code == 422
         outside = client.post("/api/terrain/placement", json={"ground_mm": [5000, 5000]})
         assert outside.status_code == 400 and "outside the terrain" in outside.json()["detail"]
-        placed = client.post("/api/terrain/placement", json={"ground_mm": [700, -100]}).json()
+        placed = client.post("/api/terrain/placement", json={"ground_mm": [700, 0]}).json()
         assert placed["candidates"]
         program = client.post("/api/terrain/placement/insert").json()
         assert [e["text"] for e in program["entries"] if e["kind"] != "EMPTY"] == placed["program"]

@@ -21,7 +21,7 @@ from conftest import CELL
 
 def test_placement_meets_every_condition(cell_terrain, cell):
     checker = cell_terrain.checker
-    target = terrain_point_at(checker, 0.75, -0.10)
+    target = terrain_point_at(checker, 0.70, 0.0)
     result = plan_placement(checker, target, margin=0.02)
     assert result.candidates
     n = result.world_n_surface
@@ -65,10 +65,10 @@ def test_placement_counts_all_ik_branches(cell_terrain, cell):
 def test_placement_errors(cell_terrain):
     checker = cell_terrain.checker
     with pytest.raises(InputError, match="not on the terrain"):
-        plan_placement(checker, np.array([0.75, -0.10, 2.0]))
+        plan_placement(checker, np.array([0.70, 0.0, 2.0]))
     with pytest.raises(InputError, match="outside the terrain"):
         terrain_point_at(checker, 5.0, 5.0)
-    far = terrain_point_at(checker, 1.08, 0.18)  # on the terrain, out of the arm's reach
+    far = terrain_point_at(checker, 1.00, -0.30)  # on the terrain, out of the arm's reach
     with pytest.raises(UnreachableError, match="no safe instrument placement"):
         require_placement(plan_placement(checker, far))
 
@@ -90,7 +90,7 @@ def test_cli_generate_info_check_place(tmp_path):
     assert check.returncode == 0, check.stderr
     c = json.loads(check.stdout)
     assert c["exact"]["distance"] > 0 and c["sensors"]["count"] > 0
-    place = _teleprog("terrain", "place", "--cell", str(CELL), "--target", "750", "-100", "--json")
+    place = _teleprog("terrain", "place", "--cell", str(CELL), "--target", "700", "0", "--json")
     assert place.returncode == 0, place.stderr
     assert "MOVE" in json.loads(place.stdout)["program"]
     bad = _teleprog("terrain", "check", "--cell", str(CELL), "--deg", "10", "0", "0")
@@ -100,7 +100,7 @@ def test_cli_generate_info_check_place(tmp_path):
 def test_committed_cell_terrain_is_the_generated_one(tmp_path):
     """assets/terrains/lunar_cell.ply is what the generator command in the cell file writes."""
     out = tmp_path / "cell.ply"
-    gen = _teleprog("terrain", "generate", "--out", str(out), "--points", "12000", "--origin", "400", "-500",
+    gen = _teleprog("terrain", "generate", "--out", str(out), "--points", "12000", "--origin", "350", "-350",
                     "--size", "700", "700", "--mesh")
     assert gen.returncode == 0, gen.stderr
     from shared.terrain.cloud import read_ply

@@ -107,7 +107,7 @@ def test_per_shape_and_contact_triangles(cell_terrain, cell):
     from shared.robots.ik import solve_ik
     from shared.terrain.placement import terrain_point_at
 
-    ground = terrain_point_at(checker, 0.75, -0.10)
+    ground = terrain_point_at(checker, 0.70, 0.0)
     q_in = solve_ik(cell.robot, position=(base_T_world @ np.append(ground - [0, 0, 0.02], 1))[:3])[0]
     hit = checker.exact_check(q_in)
     assert hit.in_collision and hit.distance <= 0

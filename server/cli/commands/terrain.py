@@ -93,12 +93,29 @@ def _cell_terrain(path: str):
     return cell, load_cell_terrain(cell)
 
 
+def _head_sensors(terrain, sensors) -> dict:
+    """The instrument-head part's sensors (seed 004's E\\5, numbered 1..n as in Tables 3-5):
+    per sensor whether it collides or its clearance d_RS (m; None when its ray meets nothing)."""
+    from shared.terrain.arm import head_part
+
+    index = head_part(terrain.arm)
+    mine = np.flatnonzero(sensors.part == index)
+    rows = [{"index": k, "collides": bool(sensors.collides[i]),
+             "distance": None if sensors.collides[i] or not np.isfinite(sensors.d_RS[i]) else float(sensors.d_RS[i])}
+            for k, i in enumerate(mine, start=1)]
+    clear = [r["distance"] for r in rows if r["distance"] is not None]
+    return {"part": terrain.arm.parts[index].name, "count": len(rows), "colliding": sum(r["collides"] for r in rows),
+            "in_collision": any(r["collides"] for r in rows),
+            "distance": 0.0 if any(r["collides"] for r in rows) else (min(clear) if clear else None), "sensors": rows}
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     cell, terrain = _cell_terrain(args.cell)
     q = cell.robot.as_q(np.radians(args.deg))
     cell.robot.check_limits(q)
     exact = terrain.checker.exact_check(q, per_shape=True)
     sensors = terrain.checker.sensor_check(q)
+    head = _head_sensors(terrain, sensors)
     if args.json:
         print_json({
             "exact": {"distance": exact.distance, "in_collision": exact.in_collision, "shape": exact.shape,
@@ -108,6 +125,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
             "sensors": {"distance": sensors.distance, "in_collision": sensors.in_collision,
                         "colliding": int(sensors.collides.sum()), "count": int(len(sensors.d_S)),
                         "d_RS": [None if not np.isfinite(v) else float(v) for v in sensors.d_RS]},
+            "head_part": head,
             "unit": "m",
         })
         return 0
@@ -119,6 +137,18 @@ def _cmd_check(args: argparse.Namespace) -> int:
         print(f"  {len(exact.contact_triangles)} terrain triangles touch the arm")
     s_state = "collision" if sensors.in_collision else f"clear, distance {sensors.distance * 1e3:.1f} mm"
     print(f"virtual sensors: {s_state} ({int(sensors.collides.sum())} of {len(sensors.d_S)} sensors collide)")
+    h_state = (f"{head['colliding']} of {head['count']} sensors collide" if head["in_collision"] else
+               "clear" + ("" if head["distance"] is None else f", distance {head['distance'] * 1e3:.1f} mm"))
+    print(f"instrument-head part (seed 004's E\\5: {head['part']}): {h_state}")
+
+    def cell_text(r: dict) -> str:
+        what = "collides" if r["collides"] else "no reading" if r["distance"] is None else f"{r['distance']:.3f} m"
+        return f"{r['index']:>3} {what}"
+
+    cells = [cell_text(r) for r in head["sensors"]]
+    rows = -(-len(cells) // 3)
+    for i in range(rows):
+        print("  " + "    ".join(c.ljust(14) for c in cells[i::rows]).rstrip())
     return 0
 
 
