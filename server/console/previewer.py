@@ -26,8 +26,11 @@ operator's explicit confirmation. A range with any warning is never confirmed, a
 
 from __future__ import annotations
 
+import logging
+import threading
+
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -48,9 +51,11 @@ if TYPE_CHECKING:
     from server.console.program_desk import ProgramDesk
     from shared.collision.cell_check import CellCollision
 
+log = logging.getLogger(__name__)
 Speed = float | Literal["instant"]
 INSTANT = "instant"
 MAX_SPEED = 100.0
+SEND_WAIT_S = 5.0  # how long a "Preview and submit" waits for a send another thread has begun
 
 
 def checked_speed(speed: Speed) -> Speed:
@@ -70,6 +75,9 @@ class _SendAfter:
     stop: int
     client: Caller | str | None
     due: bool = False  # the range was confirmed: send at the next chance, outside the lock
+    sent: SentListView | None = None  # what the send gave, whichever thread made it (the player's tick, say)
+    finished: threading.Event = field(default_factory=threading.Event)  # set once the send was made or refused
+    refusal: str | None = None  # why the send was refused (also a notice)
 
 
 UNKNOWN_START = ("the robot's state after the statements sent is not known here (a task, a stop or a failure): "
@@ -261,17 +269,20 @@ class Previewer:
             return PreviewAndSubmitView(preview=view, submitted=False, message=message)
         with self._ctx.lock:
             s = self._need()
-            self._send_after = _SendAfter(start, stop, client)
+            after = self._send_after = _SendAfter(start, stop, client)
             self._start_playing(s, self._speed)
         self._publish()
         sent = self._send_if_due()
+        if sent is None and after.due:  # another thread (the player's tick) claimed the send: wait for it
+            after.finished.wait(SEND_WAIT_S)
+            sent = after.sent
         if sent is not None:
             return PreviewAndSubmitView(preview=self.view(), submitted=True, sent=sent,
                                         message=f"statements {start + 1}-{stop} previewed and sent")
         view = self.view()
         if view.then_submit:
             return PreviewAndSubmitView(preview=view, message=f"previewing {start + 1}-{stop}; sent when it ends without warnings")
-        return PreviewAndSubmitView(preview=view, message="not sent (see the notice)")
+        return PreviewAndSubmitView(preview=view, message=after.refusal or "not sent (see the notice)")
 
     def pause(self, *, client: Caller | str | None = None) -> PreviewView:
         with self._ctx.lock:
@@ -381,12 +392,16 @@ class Previewer:
             self._send_after = None
         try:
             self.end(client=after.client)
-            return self.submit(after.start, after.stop, client=after.client)
+            after.sent = self.submit(after.start, after.stop, client=after.client)
+            return after.sent
         except TeleprogError as exc:
             message = exc.refusal.message if isinstance(exc, RefusedByRule) else str(exc)
-            self._ctx.bus.emit([Notice(level="error", message=f"preview and submit: statements {after.start + 1}-{after.stop} "
-                                                                 f"previewed but not sent: {message}")])
+            after.refusal = f"preview and submit: statements {after.start + 1}-{after.stop} previewed but not sent: {message}"
+            log.warning("%s", after.refusal)  # headless clients read the notice in the session's log too
+            self._ctx.bus.emit([Notice(level="error", message=after.refusal)])
             return None
+        finally:
+            after.finished.set()
 
     def _publish(self) -> PreviewView:
         view = self.view()

@@ -215,6 +215,33 @@ def test_instant_preview_and_submit_sends_at_once(session: Session, robot) -> No
     wait_until(lambda: len(robot.submitted) == 1, "the fake has the communication")
 
 
+def test_an_instant_preview_sent_by_the_players_tick_first_is_reported_as_sent(session: Session, robot, monkeypatch) -> None:
+    """The race a headless trial hit: the session's tick (another thread) sends a due range in the
+    moment between the preview's publish and the request's own send; the answer must still say
+    what was sent, not "not sent"."""
+    session.modes.set_regime_override(Regime.QUASI)
+    program(session, "DRIVE J1 TO 30 deg")
+    session.preview.set_speed("instant")
+    publish = session.preview._publish
+    ticked: list = []
+
+    def publish_then_tick():
+        view = publish()
+        if not ticked:
+            ticked.append(threading.Thread(target=session.tick))
+            ticked[0].start()
+            ticked[0].join()
+        return view
+
+    monkeypatch.setattr(session.preview, "_publish", publish_then_tick)
+    answer = session.preview.preview_and_submit(0, 1)
+    assert ticked, "the tick ran in the window"
+    assert answer.submitted and answer.sent is not None and "sent" in answer.message
+    assert [s.text for s in answer.sent.items] == ["DRIVE J1 TO 30 deg"]
+    wait_until(lambda: len(robot.submitted) == 1, "the fake has the communication (once)")
+    assert len(session.dispatch.view().items) == 1
+
+
 def test_a_preview_with_warnings_is_not_sent_at_any_speed(session: Session, robot) -> None:
     session.modes.set_regime_override(Regime.QUASI)
     program(session, "DRAW TO (550, 0, -600) mm IN BASE")
