@@ -209,7 +209,7 @@ class RobotCore:
         out = []
         for e in events:
             robot = e.snapshot if e.state is not StatementState.RUNNING else None
-            out.append(self.receiver.report(e.number, e.state, e.reason, robot))
+            out.append(self.receiver.report(e.number, e.state, e.reason, robot, robot_time=self.executor.time))
         return out
 
     # -- telemetry ------------------------------------------------------------------------------

@@ -111,6 +111,8 @@ class Sent:
     answered_at: float | None = None
     started_at: float | None = None
     finished_at: float | None = None
+    robot_started_at: float | None = None  # the robot's clock (StatusReport.robot_time)
+    robot_finished_at: float | None = None
 
     @property
     def final(self) -> bool:
@@ -122,6 +124,8 @@ class Sent:
             id=self.id, number=self.number, text=statement_text(self.statement), statement=self.statement,
             status=self.status, reason=self.reason, submitted_at=self.submitted_at, answered_at=self.answered_at,
             started_at=self.started_at, finished_at=self.finished_at, run_s=run,
+            robot_run_s=None if self.robot_finished_at is None or self.robot_started_at is None
+            else self.robot_finished_at - self.robot_started_at,
         )
 
 
@@ -500,11 +504,11 @@ class Dispatch:
         status = SentStatus(report.state.value)
         now = self._ctx.wall_clock()
         if status is SentStatus.RUNNING and s.started_at is None:
-            s.started_at = now
+            s.started_at, s.robot_started_at = now, report.robot_time
         if status in FINAL_SENT:
-            s.finished_at = now
+            s.finished_at, s.robot_finished_at = now, report.robot_time
             if s.started_at is None:
-                s.started_at = now
+                s.started_at, s.robot_started_at = now, report.robot_time
             self.remote.take_report(s.statement if status is SentStatus.DONE else None, report)
             if status is not SentStatus.DONE:
                 self._desk.start.unknown = True  # the robot did not end where predicted

@@ -177,6 +177,7 @@ class SentView(_View):
     started_at: float | None = None
     finished_at: float | None = None
     run_s: float | None = Field(None, description="running -> final, on the console's clock")
+    robot_run_s: float | None = Field(None, description="running -> final, on the robot's clock (its reports' robot_time)")
 
 
 class SentListView(_View):

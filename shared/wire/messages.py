@@ -287,6 +287,9 @@ class StatusReport(_Model):
     state: StatementState
     reason: str | None = Field(None, max_length=MAX_TEXT)
     robot: RobotSnapshot | None = None
+    robot_time: float | None = Field(
+        None, ge=0.0, description="the robot's own clock (s since it started) when the statement reached this state",
+    )
 
     @model_validator(mode="after")
     def _complete(self) -> "StatusReport":

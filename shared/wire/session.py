@@ -273,10 +273,13 @@ class CommandReceiver:
         return ack
 
     def report(
-        self, number: int, state: StatementState, reason: str | None = None, robot: RobotSnapshot | None = None
+        self, number: int, state: StatementState, reason: str | None = None, robot: RobotSnapshot | None = None,
+        robot_time: float | None = None,
     ) -> StatusReport:
-        """Log the next status report (kept for replay) and return it for sending."""
-        rep = StatusReport(report_seq=len(self.reports) + 1, number=number, state=state, reason=reason, robot=robot)
+        """Log the next status report (kept for replay) and return it for sending; ``robot_time`` is
+        the robot's clock at the change (s)."""
+        rep = StatusReport(report_seq=len(self.reports) + 1, number=number, state=state, reason=reason, robot=robot,
+                           robot_time=robot_time)
         self.reports.append(rep)
         return rep
 
