@@ -119,7 +119,10 @@ def _one_line(exc: BaseException) -> str:
 class Executor:
     """One arm, one buffer of numbered statements, stepped one servo period at a time."""
 
-    def __init__(self, cell: Cell, world: SimWorld, settings: ExecutorSettings | None = None, q0: np.ndarray | None = None):
+    def __init__(self, cell: Cell, world: SimWorld, settings: ExecutorSettings | None = None, q0: np.ndarray | None = None,
+                 scene: SceneModel | None = None):
+        """``scene``: the cell's collision model when the caller built it already (trials build it
+        once for many robots); otherwise it is built here."""
         self.cell = cell
         self.robot = cell.robot
         self.world = world
@@ -142,7 +145,10 @@ class Executor:
         # tens of thousands of triangles took seconds at every start
         self._terrain = load_cell_terrain(cell).checker if self.settings.collision_checks and has_terrain(cell) else None
         exclude = (TERRAIN_OBJECT,) if self._terrain is not None else ()
-        self._scene = SceneModel.from_cell(cell, exclude=exclude) if self.settings.collision_checks else None
+        if not self.settings.collision_checks:
+            self._scene = None
+        else:
+            self._scene = scene if scene is not None and not exclude else SceneModel.from_cell(cell, exclude=exclude)
         self._skip = tuple(
             (peg, other) for peg in world.pegs for other in ("plate", "table", f"link{self.robot.dof}", f"link{self.robot.dof - 1}")
         )
