@@ -8,6 +8,7 @@ import csv
 import json
 from pathlib import Path
 
+from server.trials.kind_results import KindReport, KindSummary
 from server.trials.results import ApproachReport, ApproachSummary
 
 CSV_COLUMNS = (
@@ -29,7 +30,7 @@ def table_lines(summary: ApproachSummary) -> list[str]:
     s, d = summary, summary.delay_ms / 1e3
     thesis = s.thesis
     lines = [
-        f"approach trial: {s.runs_succeeded} of {s.runs_total} run(s) succeeded, delay {s.delay_ms:g} ms each way, "
+        f"approach trial ({s.clock} time): {s.runs_succeeded} of {s.runs_total} run(s) succeeded, delay {s.delay_ms:g} ms each way, "
         f"{s.statements} statements, virtual time {_s(s.virtual_s)}, mean statement time {_s(s.mean_statement_s)}",
         "",
         f"| mode | measured (median) | IQR | predicted | thesis ({thesis['delay_ms'] / 1e3:g} s delay) |",
@@ -81,4 +82,60 @@ def write_results(report: ApproachReport, out: Path) -> list[Path]:
                                                               for t in m.statements),
                     "success": m.success and run.success, "failure": m.failure or ("" if run.success else run.failure),
                 })
+    return [json_path, csv_path]
+
+
+# -- the grasp, extract, insert and transfer trials ------------------------------------------------
+KIND_CSV_COLUMNS = (
+    "kind", "mode", "run", "world_seed", "clock", "delay_ms", "reached", "success", "total_s", "robot_total_s",
+    "virtual_s", "alarms", "statements", "statement_s", "robot_run_s", "failure",
+)
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{100 * x:.0f} %"
+
+
+def world_line(world: dict[str, float]) -> str:
+    return (f"world: peg and holes off the model by up to {world.get('object_offset_mm', 0):g} mm, force noise "
+            f"{world.get('force_noise_n', 0):g} N, sticking chance {_pct(world.get('stick_probability'))}")
+
+
+def kind_table_lines(summary: KindSummary) -> list[str]:
+    s = summary
+    lines = [
+        f"{s.kind} trial ({s.clock} time): {len(s.runs)} run(s), delay {s.delay_ms:g} ms each way, seed {s.seed}",
+        world_line(s.world),
+        "",
+        "| mode | runs | reached | succeeded | success (Wilson 95 %) | thesis | time, median (IQR) | alarms |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for m in s.modes:
+        ci = "" if m.success_wilson95 is None else f" ({_pct(m.success_wilson95[0])}-{_pct(m.success_wilson95[1])})"
+        lines.append(f"| {m.mode} | {m.runs} | {m.reached} | {m.succeeded} | {_pct(m.success_rate)}{ci} | "
+                     f"{_pct(m.thesis_success_rate)} | {_s(m.total_s)} ({_iqr(m.total_iqr_s)}) | {m.alarms} |")
+    for m in s.modes:
+        for cause, count in sorted(m.failures.items(), key=lambda kv: -kv[1]):
+            lines.append(f"{m.mode}: {count} x {cause}")
+    return lines
+
+
+def write_kind_results(report: KindReport, out: Path) -> list[Path]:
+    """``out/results.json`` and ``out/results.csv`` (one row per run); returns the paths written."""
+    out.mkdir(parents=True, exist_ok=True)
+    json_path, csv_path = out / "results.json", out / "results.csv"
+    json_path.write_text(json.dumps(report.model_dump(mode="json"), indent=1) + "\n", encoding="utf-8")
+    with csv_path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=KIND_CSV_COLUMNS)
+        writer.writeheader()
+        for r in report.summary.runs:
+            writer.writerow({
+                "kind": r.kind, "mode": r.mode, "run": r.index, "world_seed": r.world_seed, "clock": r.clock,
+                "delay_ms": r.delay_ms, "reached": r.reached, "success": r.success, "total_s": r.total_s,
+                "robot_total_s": r.robot_total_s, "virtual_s": r.virtual_s, "alarms": r.alarms,
+                "statements": len(r.statements),
+                "statement_s": ";".join("" if t.statement_s is None else f"{t.statement_s:.4f}" for t in r.statements),
+                "robot_run_s": ";".join("" if t.robot_run_s is None else f"{t.robot_run_s:.4f}" for t in r.statements),
+                "failure": r.failure or "",
+            })
     return [json_path, csv_path]

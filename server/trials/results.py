@@ -19,10 +19,11 @@ report arrived through the link. What they mean:
 
 from __future__ import annotations
 
-from statistics import median
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from server.trials.stats import iqr, med
 
 Mode = Literal["online", "step_by_step"]
 THESIS_DELAY_MS = 3000.0
@@ -35,7 +36,7 @@ class _Model(BaseModel):
 
 
 class StatementTiming(_Model):
-    index: int = Field(description="0-based place in the approach")
+    index: int = Field(description="0-based place in the trial's statements")
     text: str
     planned_s: float = Field(description="planned duration (the console's planner), s")
     status: str = Field(description="final status from the telerobot, or the last one seen")
@@ -44,6 +45,7 @@ class StatementTiming(_Model):
     finished_at: float | None = Field(None, description="console clock when the final report arrived")
     statement_s: float | None = Field(None, description="submit -> final report, s")
     run_s: float | None = Field(None, description="running report -> final report: the telerobot's execution, s")
+    robot_run_s: float | None = Field(None, description="running -> final on the robot's own clock, s")
     robot_done_at: float | None = Field(None, description="final report's arrival less the one-way delay")
     lag_s: float | None = Field(None, description="telerobot done - submitted (the virtual robot done), s")
 
@@ -66,6 +68,7 @@ class RunResult(_Model):
     index: int
     world_seed: int
     delay_ms: float
+    clock: Literal["real", "virtual"] = "real"
     one_way_delay_s: float | None = Field(None, description="the link's one-way delay as the console measured it, s")
     online: ModeResult | None = None
     step_by_step: ModeResult | None = None
@@ -75,11 +78,13 @@ class RunResult(_Model):
 
 class ApproachSummary(_Model):
     kind: Literal["approach"] = "approach"
+    clock: Literal["real", "virtual"] = "real"
     runs_total: int
     runs_succeeded: int
     delay_ms: float
     seed: int
     cell: str
+    world: dict[str, float] = Field(default_factory=dict, description="the worlds' settings (each run's seed aside)")
     statements: int
     virtual_s: float | None
     mean_statement_s: float | None = Field(description="median over runs of the mean telerobot run time, s")
@@ -100,22 +105,11 @@ class ApproachReport(_Model):
     summary: ApproachSummary
 
 
-def _med(values: list[float]) -> float | None:
-    return round(median(values), 4) if values else None
+_med, _iqr = med, iqr
 
 
-def _iqr(values: list[float]) -> tuple[float, float] | None:
-    if not values:
-        return None
-    if len(values) == 1:
-        return (round(values[0], 4), round(values[0], 4))
-    from statistics import quantiles
-
-    q1, _, q3 = quantiles(values, n=4, method="inclusive")
-    return (round(q1, 4), round(q3, 4))
-
-
-def summarize(runs: list[RunResult], *, delay_ms: float, seed: int, cell: str, statements: int) -> ApproachSummary:
+def summarize(runs: list[RunResult], *, delay_ms: float, seed: int, cell: str, statements: int,
+              clock: str = "real", world: dict[str, float] | None = None) -> ApproachSummary:
     """Medians over the runs whose both modes succeeded, and the predictions from them."""
     good = [r for r in runs if r.success and r.online is not None and r.step_by_step is not None]
     online = [r.online.total_s for r in good if r.online.total_s is not None]
@@ -126,6 +120,7 @@ def summarize(runs: list[RunResult], *, delay_ms: float, seed: int, cell: str, s
     d = delay_ms / 1e3
     online_med, step_med = _med(online), _med(step)
     return ApproachSummary(
+        clock=clock, world=world or {},
         runs_total=len(runs), runs_succeeded=len(good), delay_ms=delay_ms, seed=seed, cell=cell, statements=statements,
         virtual_s=virtual, mean_statement_s=mean_statement,
         online_total_s=online_med, online_total_iqr_s=_iqr(online),

@@ -2,8 +2,8 @@
 process on a free port, and a small synchronous client of the console's HTTP API.
 
 Each run gets its own session, so runs share nothing: a fresh robot whose world is seeded from
-``--seed`` and the run index (``TELEPROG_ROBOT_WORLD__SEED``, read by the telerobot the session
-starts), a fresh link and a fresh console. Nothing is recorded (``--no-record``); the session's
+``--seed`` and the run index, with the trial's offsets, noise and sticking
+(``TELEPROG_ROBOT_WORLD__*``, read by the telerobot the session starts), a fresh link and a fresh console. Nothing is recorded (``--no-record``); the session's
 output goes to a log file that an error names.
 """
 
@@ -20,6 +20,7 @@ from typing import TypeVar
 
 import httpx
 
+from robot_sim.world import WorldSettings
 from shared.errors import TeleprogError
 from shared.paths import PROJECT_DIR
 
@@ -69,17 +70,23 @@ def wait_until(predicate: Callable[[], T], timeout: float, what: str, period: fl
         time.sleep(period)
 
 
+def world_environment(world: WorldSettings) -> dict[str, str]:
+    """The telerobot's settings for this world, as the environment ``teleprog robot`` reads."""
+    return {f"TELEPROG_ROBOT_WORLD__{name.upper()}": repr(value) if isinstance(value, float) else str(value)
+            for name, value in world.model_dump().items()}
+
+
 class TrialSession:
     """``teleprog up --delay-ms D --cell CELL --port P --no-record`` as a child, with its API.
 
     Use as a context manager: on entry the console answers and its link is live; on exit the
     session is stopped (SIGTERM, then SIGKILL)."""
 
-    def __init__(self, *, delay_ms: float, cell: str | Path, world_seed: int, log_path: Path,
+    def __init__(self, *, delay_ms: float, cell: str | Path, world: WorldSettings, log_path: Path,
                  start_timeout: float = 180.0) -> None:
         self.delay_ms = delay_ms
         self.cell = str(cell)
-        self.world_seed = world_seed
+        self.world = world
         self.log_path = log_path
         self.start_timeout = start_timeout
         self.port = free_port()
@@ -94,7 +101,7 @@ class TrialSession:
                 [sys.executable, "-m", "server.cli", "up", "--delay-ms", f"{self.delay_ms:g}", "--cell", self.cell,
                  "--port", str(self.port), "--no-record"],
                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, cwd=PROJECT_DIR,
-                env={**os.environ, "PYTHONUNBUFFERED": "1", "TELEPROG_ROBOT_WORLD__SEED": str(self.world_seed)},
+                env={**os.environ, "PYTHONUNBUFFERED": "1", **world_environment(self.world)},
             )
         try:
             self._wait_up()

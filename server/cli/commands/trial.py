@@ -1,13 +1,17 @@
-"""``teleprog trial KIND``: the thesis's trials (§4.6) as headless, repeatable experiments, each
-run a whole real session (``teleprog up``: telerobot, delayed link, console) driven through the
-console's HTTP API.
+"""``teleprog trial KIND``: the thesis's trials (§4.6) as headless, repeatable experiments.
 
-``teleprog trial approach`` runs the approach trial: the operator's approach to the peg as 4
-statements of about 1 s, sent online (each as the virtual robot finishes it) and step by step
-(each after the previous one's final report), and prints the measured totals beside the
-predictions (online: virtual time + one-way delay; step by step: n x (2 x delay + mean statement
-time)) and the thesis's figures. ``--json`` prints one document; ``--out DIR`` writes
-``results.json`` and ``results.csv``. The exit status is 1 when a run failed.
+Kinds: ``approach`` (online teleprogramming against step by step), ``grasp`` (offline programming
+with preview), ``extract`` and ``insert`` (the robot's sub-tasks under supervision), ``transfer``
+(the whole peg transfer under segmented composite control, and under each single regime). Each run
+is a fresh session: with ``--clock real`` (default) a whole ``teleprog up`` (telerobot, delayed link,
+console) driven through the console's HTTP API; with ``--clock virtual`` the console's sender and
+planner, the link and the telerobot in one process on a virtual clock (``server.trials``).
+
+Run ``i``'s world is seeded ``S*1000+i`` with the offsets, noise and sticking given, so a run is
+repeatable alone. Runs go to ``--workers K`` local processes or a Dask cluster (``--scheduler``).
+``--json`` prints one document (``{"summary": ...}``); ``--out DIR`` writes ``results.json``,
+``results.csv`` and the plots. The approach trial exits 1 when a run failed; for the other kinds a
+failed run is a result (the success rate), and the exit is 1 only when nothing could run.
 """
 
 from __future__ import annotations
@@ -21,14 +25,22 @@ from pathlib import Path
 
 from server.cli import print_json
 
-MAX_RUNS = 1000
+MAX_RUNS = 10_000
 MAX_DELAY_MS = 60_000.0
+MAX_WORKERS = 64
+KINDS = {
+    "approach": "online teleprogramming against step by step: 4 statements of about 1 s across the delay",
+    "grasp": "alignment and grasp by offline programming with preview (thesis: 100 %)",
+    "extract": "the robot's extraction sub-task under supervision (thesis: 95 %)",
+    "insert": "the robot's insertion sub-task under supervision (thesis: 90 %)",
+    "transfer": "the whole peg transfer: segmented composite control, and each single regime",
+}
 
 
-def _cmd_approach(args: argparse.Namespace) -> int:
-    import logging
+def _check(args: argparse.Namespace):
+    from pydantic import ValidationError
 
-    from shared.cells.loader import DEFAULT_CELL
+    from server.trials.batch import TrialWorld
     from shared.errors import InputError
 
     if args.runs < 1 or args.runs > MAX_RUNS:
@@ -37,65 +49,143 @@ def _cmd_approach(args: argparse.Namespace) -> int:
         raise InputError(f"--delay-ms must be between 0 and {MAX_DELAY_MS:g}; got {args.delay_ms:g}")
     if args.seed < 0:
         raise InputError(f"--seed must be 0 or more; got {args.seed}")
+    if not 1 <= args.workers <= MAX_WORKERS:
+        raise InputError(f"--workers must be between 1 and {MAX_WORKERS}; got {args.workers}")
+    if args.scheduler is not None and not args.scheduler.startswith(("tcp://", "tls://", "inproc://", "ws://", "wss://")):
+        raise InputError(f"--scheduler must be a Dask scheduler address such as tcp://127.0.0.1:8786; got {args.scheduler!r}")
     out = Path(args.out) if args.out else None
     if out is not None and out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
-    cell = Path(args.cell) if args.cell else DEFAULT_CELL
+    try:
+        world = TrialWorld(object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n,
+                           stick_probability=args.stick_probability)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        flag = "--" + str(first["loc"][0]).replace("_", "-")
+        raise InputError(f"{flag}: {first['msg']}") from None
+    return world, out
 
+
+def _cmd_trial(args: argparse.Namespace) -> int:
+    import logging
+
+    from shared.cells.loader import DEFAULT_CELL
+
+    world, out = _check(args)
     if not getattr(args, "verbose", False):
         logging.getLogger("httpx").setLevel(logging.WARNING)  # not a line per API call of the runs
+        logging.getLogger("distributed").setLevel(logging.WARNING)
     from tqdm import tqdm
 
-    from server.trials.approach import run_batch
-    from server.trials.report import table_lines, write_results
-    from server.trials.script import approach_script
+    from server.trials.batch import RunSpec, open_executor, run_all, world_seed
 
-    script = approach_script(cell)  # a missing or unusable cell is one line here, before any session starts
+    kind = args.trial_kind
+    cell = str(Path(args.cell) if args.cell else DEFAULT_CELL)
     log_dir = Path(tempfile.mkdtemp(prefix="teleprog-trial-"))
-    bar = tqdm(total=2 * args.runs, desc="approach trial", unit="mode", file=sys.stderr, disable=None, leave=False)
-    done_runs = 0
+    common = dict(delay_ms=args.delay_ms, clock=args.clock, log_dir=str(log_dir))
+    # a missing or unusable cell is one line here, before any session starts
+    if kind == "approach":
+        from server.trials.script import approach_script
 
-    def after_run(run) -> None:
-        nonlocal done_runs
-        done_runs += 1
-        bar.n = 2 * done_runs
-        bar.set_postfix_str(f"run {done_runs}/{args.runs} {'ok' if run.success else 'FAILED'}")
-        bar.refresh()
+        script = approach_script(cell)
+        modes: tuple[str, ...] = ("online+step_by_step",)
+        specs = [RunSpec(kind, modes[0], i, world.settings(world_seed(args.seed, i)), script=script, **common)
+                 for i in range(args.runs)]
+    else:
+        from server.trials.kinds import KIND_MODES, regime_schedule
+        from server.trials.programs import transfer_program
+
+        program = transfer_program(cell)
+        modes = tuple(args.mode) if args.mode else KIND_MODES[kind]
+        bad = [m for m in modes if m not in KIND_MODES[kind]]
+        if bad:
+            from shared.errors import InputError
+
+            raise InputError(f"--mode {bad[0]}: the {kind} trial's modes are {', '.join(KIND_MODES[kind])}")
+        schedule = tuple(regime_schedule(cell, program.texts())) if "composite" in modes else None
+        specs = [RunSpec(kind, m, i, world.settings(world_seed(args.seed, i)), program=program, schedule=schedule, **common)
+                 for m in modes for i in range(args.runs)]
+
+    bar = tqdm(total=len(specs), desc=f"{kind} trial", unit="run", file=sys.stderr, disable=None, leave=False)
+    failed = 0
+
+    def done(result) -> None:
+        nonlocal failed
+        failed += not result.success
+        bar.update(1)
+        bar.set_postfix_str(f"{failed} failed" if failed else "all ok")
 
     try:
-        report = run_batch(script, runs=args.runs, delay_ms=args.delay_ms, seed=args.seed, log_dir=log_dir,
-                           on_mode=lambda mode: bar.update(1), on_run=after_run)
+        with open_executor(args.workers, args.scheduler) as executor:
+            results = run_all(specs, executor, on_done=done)
     finally:
         bar.close()
-    summary = report.summary
-    if out is not None:
-        written = write_results(report, out)
+
+    world_fields = world.model_dump()
+    if kind == "approach":
+        from server.trials.plots import approach_plots
+        from server.trials.report import table_lines, write_results
+        from server.trials.results import ApproachReport, summarize
+
+        summary = summarize(results, delay_ms=args.delay_ms, seed=args.seed, cell=cell,
+                            statements=len(script.statements), clock=args.clock, world=world_fields)
+        report = ApproachReport(summary=summary)
+        lines = table_lines(summary)
+        writer, plotter = write_results, approach_plots
+    else:
+        from server.trials.kind_results import KindReport, summarize_kind
+        from server.trials.plots import kind_plots
+        from server.trials.report import kind_table_lines, write_kind_results
+
+        summary = summarize_kind(kind, modes, results, clock=args.clock, delay_ms=args.delay_ms, seed=args.seed,
+                                 cell=cell, world=world_fields)
+        report = KindReport(summary=summary)
+        lines = kind_table_lines(summary)
+        writer, plotter = write_kind_results, kind_plots
+    written = writer(report, out) + plotter(summary, out) if out is not None else []
     if args.json:
         print_json(report.model_dump(mode="json"))
     else:
-        print("\n".join(table_lines(summary)))
-        if out is not None:
+        print("\n".join(lines))
+        if written:
             print("wrote " + ", ".join(str(p) for p in written))
-    if summary.runs_succeeded < summary.runs_total:
-        failed = [r for r in summary.runs if not r.success]
-        print(f"teleprog: error: {len(failed)} of {summary.runs_total} run(s) failed; first: run {failed[0].index}: "
-              f"{failed[0].failure} (session logs in {log_dir})", file=sys.stderr)
+    broken = [r for r in results if not r.success and (kind == "approach" or not r.reached)]
+    if kind != "approach":
+        broken = [r for r in broken if not (r.failure or "").startswith("setup: ")]  # a stuck peg in setup is a result
+    if broken:
+        first = broken[0]
+        print(f"teleprog: error: {len(broken)} of {len(results)} run(s) failed; first: run {first.index}: {first.failure}"
+              + (f" (session logs in {log_dir})" if args.clock == "real" else ""), file=sys.stderr)
         return 1
     shutil.rmtree(log_dir, ignore_errors=True)
     return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("trial", help="the thesis's trials (4.6) as repeatable experiments on real sessions: approach")
+    p = sub.add_parser("trial", help="the thesis's trials (4.6) as repeatable experiments: " + ", ".join(KINDS))
     kinds = p.add_subparsers(dest="trial_kind", required=True, parser_class=type(p))
-    a = kinds.add_parser(
-        "approach", help="online teleprogramming against step by step: 4 statements of about 1 s across the delay"
-    )
-    a.add_argument("--runs", type=int, default=1, metavar="N", help="how many runs, each a fresh session (default 1)")
-    a.add_argument("--delay-ms", type=float, default=3000.0, metavar="D", help="link delay each way, ms (default 3000)")
-    a.add_argument("--seed", type=int, default=0, metavar="S",
-                   help="seed of the worlds: run i's telerobot world is seeded S*1000+i (default 0)")
-    a.add_argument("--cell", default=None, metavar="CELL", help="cell file with a 'peg' (default assets/cells/peg_in_hole.toml)")
-    a.add_argument("--json", action="store_true", help="print one JSON document: {\"summary\": ...}")
-    a.add_argument("--out", metavar="DIR", default=None, help="write DIR/results.json and DIR/results.csv")
-    a.set_defaults(handler=_cmd_approach)
+    for kind, help_text in KINDS.items():
+        a = kinds.add_parser(kind, help=help_text, description=help_text)
+        a.add_argument("--runs", type=int, default=1, metavar="N", help="how many runs (of each mode), each a fresh session (default 1)")
+        a.add_argument("--delay-ms", type=float, default=3000.0, metavar="D", help="link delay each way, ms (default 3000)")
+        a.add_argument("--seed", type=int, default=0, metavar="S",
+                       help="seed of the worlds: run i's telerobot world is seeded S*1000+i (default 0)")
+        a.add_argument("--cell", default=None, metavar="CELL",
+                       help="cell file with a movable peg in a hole (default assets/cells/peg_in_hole.toml)")
+        a.add_argument("--clock", choices=("real", "virtual"), default="real",
+                       help="real: whole teleprog up sessions; virtual: console, link and robot in one process on a virtual clock")
+        a.add_argument("--workers", type=int, default=1, metavar="K", help="run K runs at once in local processes (default 1)")
+        a.add_argument("--scheduler", default=None, metavar="URL", help="run on the Dask cluster at URL (tcp://HOST:PORT)")
+        a.add_argument("--object-offset-mm", type=float, default=2.0, metavar="MM",
+                       help="the real peg and holes lie up to MM off the model in x and y (default 2)")
+        a.add_argument("--force-noise-n", type=float, default=0.05, metavar="N", help="force sensor noise, std in N (default 0.05)")
+        a.add_argument("--stick-probability", type=float, default=0.05, metavar="P",
+                       help="chance the peg sticks when pulled out of its hole (default 0.05)")
+        if kind == "transfer":
+            a.add_argument("--mode", action="append", default=None, metavar="MODE",
+                           help="composite, free, quasi or operation (repeatable; default all four)")
+        a.add_argument("--json", action="store_true", help="print one JSON document: {\"summary\": ...}")
+        a.add_argument("--out", metavar="DIR", default=None, help="write DIR/results.json, DIR/results.csv and the plots (PNG)")
+        a.set_defaults(handler=_cmd_trial)
+        if kind != "transfer":
+            a.set_defaults(mode=None)
