@@ -210,8 +210,12 @@ class SimWorld:
         """Carry a held peg with the tool."""
         held = self.held_peg()
         if held is not None:
-            _, peg = held
+            name, peg = held
             peg.world_T_peg = self.world_T_tcp(q) @ peg.tool_T_peg
+            if peg.stuck and peg.in_hole is not None:
+                lift = peg.world_T_peg[2, 3] - peg.half_size[2] - self._stuck_foot_z(name, peg)
+                if self.settings.contact_stiffness * lift >= self.settings.stick_force:
+                    peg.stuck = False  # pulled hard enough: the jam gives
             if peg.in_hole is not None:
                 hole = self.holes[peg.in_hole]
                 if peg.world_T_peg[2, 3] - peg.half_size[2] > hole.world_T_hole[2, 3]:
@@ -266,15 +270,14 @@ class SimWorld:
                 force[2] += k * (floor - foot[2])
                 what = f"{hole.name} floor"
             if peg.stuck and peg.in_hole == hole.name and foot[2] < hole.world_T_hole[2, 3]:
-                # the peg is jammed: pulling up stretches the spring until stick_force frees it
+                # the peg is jammed: pulling up stretches the spring until stick_force frees it.
+                # A query only reads the force (at most stick_force, where the jam gives); the peg
+                # frees when the arm really moves there (``follow``), so a force monitor sees the
+                # pull pass its limit even when one servo step would jump past stick_force.
                 lift = foot[2] - self._stuck_foot_z(name, peg)
                 if lift > 0.0:
-                    pull = k * lift
-                    if pull >= self.settings.stick_force:
-                        peg.stuck = False
-                    else:
-                        force[2] -= pull
-                        what = f"{name} stuck in {hole.name}"
+                    force[2] -= min(k * lift, self.settings.stick_force)
+                    what = f"{name} stuck in {hole.name}"
         else:
             surface = self.plate_top_z if self._over_plate(foot) else self.table_top_z
             if foot[2] < surface:
