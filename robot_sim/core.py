@@ -177,6 +177,20 @@ class RobotCore:
             self._next_heartbeat += self.heartbeat_s
         return out if self.greeted else []
 
+    def skip_idle(self, until: float) -> bool:
+        """Virtual time only: move an idle robot's clock on to ``until`` without servo ticks, as if
+        it had ticked with nothing to run (no statement running or waiting, nothing held for the
+        operator). Its heartbeats of the skipped periods are not sent (nobody hears them in virtual
+        time), the next one is due as if it had. False, and nothing changes, when it is not idle."""
+        ex = self.executor
+        if ex.busy or ex.state is not RobotState.IDLE or until <= ex.time:
+            return False
+        ex.time = until
+        while self._next_heartbeat <= until:
+            self._next_heartbeat += self.heartbeat_s
+            self._heartbeats += 1
+        return True
+
     def _check_silence(self, out: list[BaseModel]) -> None:
         now = self.executor.time
         if not (self.watch.silent(now) and self.executor.busy):

@@ -60,6 +60,15 @@ def cell_parts(cell_path: str) -> CellParts:
     return CellParts(cell, SceneModel.from_cell(cell))
 
 
+def warm(cell_path: str | Path) -> None:
+    """Build what every run in this process shares (the cell, its collision model, the compiled
+    kernels a first run would compile) before runs start, or before worker processes fork."""
+    driver = VirtualDriver(cell_path, WorldSettings(), 0.0)
+    driver.wait_welcome()
+    driver.generate(["SPEED 50 %"])
+    driver.finals(driver.send(), 5.0)
+
+
 class VirtualDriver:
     """One run's session in virtual time; the :class:`server.trials.drivers.Driver` interface."""
 
@@ -162,12 +171,22 @@ class VirtualDriver:
                 record.robot_run_s = report.robot_time - robot_started
         record.status, record.reason = report.state.value, report.reason or record.reason
 
+    def _advance(self, limit: float) -> None:
+        """One servo period; while the robot is idle, first skip the periods in which nothing can
+        happen: up to the servo period before the next delivery, console heartbeat or ``limit``
+        (an idle executor's tick only moves its clock; ``RobotCore.skip_idle``)."""
+        due = [x for x in (self.link.next_due(), self._next_heartbeat, limit) if x is not None]
+        periods = int((min(due) - self.t) / self.dt + 1e-9) - 1
+        if periods > 0 and self.robot.skip_idle(self.t + periods * self.dt):
+            self.t = self.robot.executor.time
+        self._step()
+
     def _run_until(self, done, timeout: float, what: str) -> None:
         end = self.t + timeout
         while not done():
             if self.t > end:
                 raise TrialError(f"{what} not within {timeout:g} s (virtual time)")
-            self._step()
+            self._advance(end)
 
     # -- the Driver interface ----------------------------------------------------------------
     def now(self) -> float:
@@ -175,7 +194,7 @@ class VirtualDriver:
 
     def wait_until(self, t: float) -> None:
         while self.t + 1e-9 < t:
-            self._step()
+            self._advance(t)
 
     def generate(self, texts: list[str]) -> list[float]:
         """The operator makes ``texts`` on the virtual arm: each is planned where the previous one

@@ -65,6 +65,9 @@ class JointPath:
     def ddq(self, s: np.ndarray) -> np.ndarray:
         return np.zeros(np.shape(s) + self.delta.shape)
 
+    def q_dq_ddq(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.q(s), self.dq(s), self.ddq(s)
+
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return np.abs(self.delta), np.zeros_like(self.delta)
 
@@ -93,6 +96,8 @@ def hermite(
     """Cubic Hermite interpolation on intervals of length ``h`` between values ``p0``, ``p1``
     (n, dof) with slopes ``m0``, ``m1``, at fractions ``u`` (n,): the value (``order`` 0) or its
     first or second derivative with respect to the interval's parameter."""
+    if u.size == 1:  # one servo step's sample: the coefficients as floats, 4 vector operations
+        return _hermite_one(p0, p1, m0, m1, float(h.reshape(-1)[0]), float(u.reshape(-1)[0]), order)
     if order == 0:
         u2, u3 = u * u, u * u * u
         c00, c10, c01, c11, scale = 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2, None
@@ -104,6 +109,21 @@ def hermite(
     hh = h[..., None]
     out = c00[..., None] * p0 + c10[..., None] * hh * m0 + c01[..., None] * p1 + c11[..., None] * hh * m1
     return out if scale is None else out / scale[..., None]
+
+
+def _hermite_one(p0: np.ndarray, p1: np.ndarray, m0: np.ndarray, m1: np.ndarray, h: float, u: float,
+                 order: int) -> np.ndarray:
+    """``hermite`` at a single fraction ``u`` (the same formulas, scalar coefficients)."""
+    if order == 0:
+        u2, u3 = u * u, u * u * u
+        c00, c10, c01, c11, scale = 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2, 1.0
+    elif order == 1:
+        u2 = u * u
+        c00, c10, c01, c11, scale = 6 * u2 - 6 * u, 3 * u2 - 4 * u + 1, -6 * u2 + 6 * u, 3 * u2 - 2 * u, h
+    else:
+        c00, c10, c01, c11, scale = 12 * u - 6, 6 * u - 4, -12 * u + 6, 6 * u - 2, h * h
+    out = c00 * p0 + (c10 * h) * m0 + c01 * p1 + (c11 * h) * m1
+    return out if order == 0 else out / scale
 
 
 @dataclass(frozen=True)
@@ -139,6 +159,13 @@ class NodePath:
 
     def q(self, s: np.ndarray) -> np.ndarray:
         return self._eval(s, 0)
+
+    def q_dq_ddq(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``q``, ``dq/ds`` and ``d2q/ds2`` at ``s``, the interval located once (a servo step's
+        sample needs all three)."""
+        k, h, u = self._locate(s)
+        p0, p1, m0, m1 = self.q_nodes[k], self.q_nodes[k + 1], self.tangents[k], self.tangents[k + 1]
+        return tuple(hermite(p0, p1, m0, m1, h, u, order) for order in (0, 1, 2))  # type: ignore[return-value]
 
     def dq(self, s: np.ndarray) -> np.ndarray:
         return self._eval(s, 1)

@@ -9,6 +9,8 @@ Cartesian path keeps its shape whatever the timing. The law accelerates at ``acc
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +51,8 @@ def evaluate_trapezoids(
     """``Trapezoid.evaluate`` for many laws at once: ``velocity`` and ``accel`` may be arrays
     broadcast against ``t`` (one law per time), so a whole plan samples in one pass."""
     t = np.asarray(t, dtype=float)
+    if t.size == 1 and np.ndim(velocity) == 0 and np.ndim(accel) == 0:
+        return _evaluate_one(t, float(velocity), float(accel))
     a = np.asarray(accel, dtype=float)
     ta = np.minimum(velocity / a, np.sqrt(1.0 / a))
     peak = a * ta
@@ -62,3 +66,23 @@ def evaluate_trapezoids(
     sdd = np.where(rising, a, np.where(falling, -a, 0.0))
     still = (t <= 0.0) | (t >= total)  # before and after the motion nothing moves
     return np.clip(s, 0.0, 1.0), np.where(still, 0.0, sd), np.where(still, 0.0, sdd)
+
+
+def _evaluate_one(t: np.ndarray, velocity: float, a: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``evaluate_trapezoids`` at one time (a servo step), in floats; the same formulas."""
+    ta = min(velocity / a, math.sqrt(1.0 / a))
+    peak = a * ta
+    total = 2.0 * ta + max(0.0, (1.0 - peak * ta) / peak)
+    t0 = float(t.reshape(-1)[0])
+    tc = min(max(t0, 0.0), total)
+    td = total - tc
+    if tc < ta:
+        s, sd, sdd = 0.5 * a * tc * tc, a * tc, a
+    elif tc > total - ta:
+        s, sd, sdd = 1.0 - 0.5 * a * td * td, a * td, -a
+    else:
+        s, sd, sdd = 0.5 * a * ta * ta + peak * (tc - ta), peak, 0.0
+    if t0 <= 0.0 or t0 >= total:
+        sd = sdd = 0.0
+    shape = t.shape
+    return (np.full(shape, min(max(s, 0.0), 1.0)), np.full(shape, sd), np.full(shape, sdd))

@@ -119,10 +119,9 @@ class Segment:
             zeros = np.zeros((ts.size, dof))
             return Samples(ts, q, zeros, zeros.copy())
         s, sd, sdd = self.law.evaluate(ts)
-        dq = self.path.dq(s)
-        q = self.path.q(s)
+        q, dq, ddq = self.path.q_dq_ddq(s)
         qd = dq * sd[:, None]
-        qdd = self.path.ddq(s) * (sd * sd)[:, None] + dq * sdd[:, None]
+        qdd = ddq * (sd * sd)[:, None] + dq * sdd[:, None]
         # exact ends (no interpolation round-off at the targets)
         q[ts <= 0.0] = self.q_start
         q[ts >= self.duration] = self.q_end

@@ -106,6 +106,10 @@ def _cmd_trial(args: argparse.Namespace) -> int:
         specs = [RunSpec(kind, m, i, world.settings(world_seed(args.seed, i)), program=program, schedule=schedule, **common)
                  for m in modes for i in range(args.runs)]
 
+    if args.clock == "virtual" and args.scheduler is None:
+        from server.trials.virtual_clock import warm
+
+        warm(cell)  # once here, so forked workers start with the cell's models and compiled kernels
     bar = tqdm(total=len(specs), desc=f"{kind} trial", unit="run", file=sys.stderr, disable=None, leave=False)
     failed = 0
 
