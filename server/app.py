@@ -21,6 +21,7 @@ from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
 from server.api.recordings import RecordingNow, RecordingsSource
+from server.trials.service import TrialBatches
 from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
 from server.console import Session
@@ -43,11 +44,11 @@ class ConsoleState:
     recorder: SessionRecorder | None = None
 
 
-def _build_page(viser_server, session: Session) -> None:
+def _build_page(viser_server, session: Session, trials: TrialBatches) -> None:
     """The viser scene and panels (``webui.console.build_console``)."""
     from webui.console import build_console
 
-    build_console(viser_server, session)
+    build_console(viser_server, session, trials)
 
 
 def create_app(
@@ -83,15 +84,18 @@ def create_app(
             tasks.append(asyncio.create_task(connect(), name="robot-connect"))
         tasks.append(asyncio.create_task(session.run(), name="session-clock"))
         viser_server = start_viser()
+        trials = TrialBatches(settings.cell)
         try:
             if build_page:
-                _build_page(viser_server, session)
+                _build_page(viser_server, session, trials)
             holder["state"] = ConsoleState(settings, session, viser_server.get_port(), recorder)
             app.state.console = holder["state"]
             app.state.recordings = RecordingsSource(Path(settings.record_dir), lambda: _recording_now(recorder))
+            app.state.trials = trials
             log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
             yield
         finally:
+            trials.close()
             session.close()
             for task in tasks:
                 task.cancel()

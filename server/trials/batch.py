@@ -94,9 +94,15 @@ class _Inline(Executor):
 
 
 @contextmanager
-def open_executor(workers: int = 1, scheduler: str | None = None) -> Iterator[Executor]:
+def open_executor(workers: int = 1, scheduler: str | None = None, *, isolated: bool = False) -> Iterator[Executor]:
     """The executor for a batch: Dask at ``scheduler``, else ``workers`` local processes (forked,
-    so the parent's imports and cell models come along), else this process."""
+    so the parent's imports and cell models come along), else this process. ``isolated``: never
+    this process nor a fork of it (a fresh spawned process: for a console, whose threads a fork
+    would copy mid-work and whose event loop the runs would slow)."""
+    if isolated and not scheduler:
+        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=multiprocessing.get_context("spawn")) as pool:
+            yield pool
+        return
     if scheduler:
         from distributed import Client
 

@@ -25,9 +25,6 @@ from pathlib import Path
 
 from server.cli import print_json
 
-MAX_RUNS = 10_000
-MAX_DELAY_MS = 60_000.0
-MAX_WORKERS = 64
 KINDS = {
     "approach": "online teleprogramming against step by step: 4 statements of about 1 s across the delay",
     "grasp": "alignment and grasp by offline programming with preview (thesis: 100 %)",
@@ -37,10 +34,12 @@ KINDS = {
 }
 
 
-def _check(args: argparse.Namespace):
+def _request(args: argparse.Namespace):
+    """The batch the flags ask for; a bad value is one line naming its flag."""
     from pydantic import ValidationError
 
     from server.trials.batch import TrialWorld
+    from server.trials.runner import MAX_DELAY_MS, MAX_RUNS, MAX_WORKERS, TrialRequest
     from shared.errors import InputError
 
     if args.runs < 1 or args.runs > MAX_RUNS:
@@ -59,11 +58,14 @@ def _check(args: argparse.Namespace):
     try:
         world = TrialWorld(object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n,
                            stick_probability=args.stick_probability)
+        request = TrialRequest(kind=args.trial_kind, runs=args.runs, delay_ms=args.delay_ms, seed=args.seed,
+                               clock=args.clock, modes=tuple(args.mode) if args.mode else None, world=world,
+                               workers=args.workers, scheduler=args.scheduler)
     except ValidationError as exc:
         first = exc.errors()[0]
         flag = "--" + str(first["loc"][0]).replace("_", "-")
         raise InputError(f"{flag}: {first['msg']}") from None
-    return world, out
+    return request, out
 
 
 def _cmd_trial(args: argparse.Namespace) -> int:
@@ -71,46 +73,18 @@ def _cmd_trial(args: argparse.Namespace) -> int:
 
     from shared.cells.loader import DEFAULT_CELL
 
-    world, out = _check(args)
+    request, out = _request(args)
     if not getattr(args, "verbose", False):
         logging.getLogger("httpx").setLevel(logging.WARNING)  # not a line per API call of the runs
         logging.getLogger("distributed").setLevel(logging.WARNING)
     from tqdm import tqdm
 
-    from server.trials.batch import RunSpec, open_executor, run_all, world_seed
+    from server.trials.runner import broken_runs, execute_batch, prepare, report_of
 
-    kind = args.trial_kind
     cell = str(Path(args.cell) if args.cell else DEFAULT_CELL)
     log_dir = Path(tempfile.mkdtemp(prefix="teleprog-trial-"))
-    common = dict(delay_ms=args.delay_ms, clock=args.clock, log_dir=str(log_dir))
-    # a missing or unusable cell is one line here, before any session starts
-    if kind == "approach":
-        from server.trials.script import approach_script
-
-        script = approach_script(cell)
-        modes: tuple[str, ...] = ("online+step_by_step",)
-        specs = [RunSpec(kind, modes[0], i, world.settings(world_seed(args.seed, i)), script=script, **common)
-                 for i in range(args.runs)]
-    else:
-        from server.trials.kinds import KIND_MODES, regime_schedule
-        from server.trials.programs import transfer_program
-
-        program = transfer_program(cell)
-        modes = tuple(args.mode) if args.mode else KIND_MODES[kind]
-        bad = [m for m in modes if m not in KIND_MODES[kind]]
-        if bad:
-            from shared.errors import InputError
-
-            raise InputError(f"--mode {bad[0]}: the {kind} trial's modes are {', '.join(KIND_MODES[kind])}")
-        schedule = tuple(regime_schedule(cell, program.texts())) if "composite" in modes else None
-        specs = [RunSpec(kind, m, i, world.settings(world_seed(args.seed, i)), program=program, schedule=schedule, **common)
-                 for m in modes for i in range(args.runs)]
-
-    if args.clock == "virtual" and args.scheduler is None:
-        from server.trials.virtual_clock import warm
-
-        warm(cell)  # once here, so forked workers start with the cell's models and compiled kernels
-    bar = tqdm(total=len(specs), desc=f"{kind} trial", unit="run", file=sys.stderr, disable=None, leave=False)
+    prepared = prepare(request, cell, log_dir)  # a missing or unusable cell is one line here
+    bar = tqdm(total=len(prepared.specs), desc=f"{request.kind} trial", unit="run", file=sys.stderr, disable=None, leave=False)
     failed = 0
 
     def done(result) -> None:
@@ -120,42 +94,18 @@ def _cmd_trial(args: argparse.Namespace) -> int:
         bar.set_postfix_str(f"{failed} failed" if failed else "all ok")
 
     try:
-        with open_executor(args.workers, args.scheduler) as executor:
-            results = run_all(specs, executor, on_done=done)
+        results = execute_batch(prepared, on_done=done)
     finally:
         bar.close()
-
-    world_fields = world.model_dump()
-    if kind == "approach":
-        from server.trials.plots import approach_plots
-        from server.trials.report import table_lines, write_results
-        from server.trials.results import ApproachReport, summarize
-
-        summary = summarize(results, delay_ms=args.delay_ms, seed=args.seed, cell=cell,
-                            statements=len(script.statements), clock=args.clock, world=world_fields)
-        report = ApproachReport(summary=summary)
-        lines = table_lines(summary)
-        writer, plotter = write_results, approach_plots
-    else:
-        from server.trials.kind_results import KindReport, summarize_kind
-        from server.trials.plots import kind_plots
-        from server.trials.report import kind_table_lines, write_kind_results
-
-        summary = summarize_kind(kind, modes, results, clock=args.clock, delay_ms=args.delay_ms, seed=args.seed,
-                                 cell=cell, world=world_fields)
-        report = KindReport(summary=summary)
-        lines = kind_table_lines(summary)
-        writer, plotter = write_kind_results, kind_plots
-    written = writer(report, out) + plotter(summary, out) if out is not None else []
+    batch = report_of(prepared, results)
+    written = batch.write(out) if out is not None else []
     if args.json:
-        print_json(report.model_dump(mode="json"))
+        print_json(batch.report.model_dump(mode="json"))
     else:
-        print("\n".join(lines))
+        print("\n".join(batch.lines))
         if written:
             print("wrote " + ", ".join(str(p) for p in written))
-    broken = [r for r in results if not r.success and (kind == "approach" or not r.reached)]
-    if kind != "approach":
-        broken = [r for r in broken if not (r.failure or "").startswith("setup: ")]  # a stuck peg in setup is a result
+    broken = broken_runs(request.kind, results)
     if broken:
         first = broken[0]
         print(f"teleprog: error: {len(broken)} of {len(results)} run(s) failed; first: run {first.index}: {first.failure}"
