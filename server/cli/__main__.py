@@ -5,4 +5,5 @@ import sys
 
 from server.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when a spawned worker process imports it again
+    sys.exit(main())
