@@ -46,7 +46,6 @@ from server.console import (
     TerrainChanged,
 )
 from server.console.events import TaskChanged
-from server.trials.service import TrialBatches
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
 from webui.legend import Legend
@@ -65,7 +64,6 @@ from webui.stop_header import StopHeader
 from webui.stream_indicator import StreamIndicator
 from webui.terrain_overlay import TerrainOverlay
 from webui.terrain_panel import TerrainPanel
-from webui.trials_panel import TrialsPanel
 
 log = logging.getLogger(__name__)
 
@@ -238,7 +236,7 @@ class Console:
         self.collision.show(view.triangles, warning)
 
 
-def build_console(server: viser.ViserServer, session: Session, trials: TrialBatches | None = None) -> Console:
+def build_console(server: viser.ViserServer, session: Session) -> Console:
     """Create the scene and every panel for ``session`` on ``server`` and keep them in step
     with the session's events. Call once, after the session exists and before clients load."""
     server.gui.configure_theme(show_share_button=False, control_width="large")
@@ -285,9 +283,6 @@ def build_console(server: viser.ViserServer, session: Session, trials: TrialBatc
         with tabs.add_tab("Terrain", viser.Icon.MOUNTAIN):
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
-    if trials is not None:
-        with tabs.add_tab("Trials", viser.Icon.CHART_BAR):
-            TrialsPanel(server, trials, actions)
     console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
                       terrain, overlay, stop, banner, stream, task)
     # first picture from the session's current state, then follow its events
