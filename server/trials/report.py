@@ -60,30 +60,38 @@ def _ratio(num: float | None, den: float | None) -> str:
 
 
 def write_results(report: ApproachReport, out: Path) -> list[Path]:
-    """``out/results.json`` and ``out/results.csv``; returns the paths written."""
+    """``out/results.json`` and ``out/results.csv`` (one row per run and mode); the paths written."""
+    return _write(report, out, CSV_COLUMNS, _approach_rows(report))
+
+
+def _approach_rows(report: ApproachReport):
+    for run in report.summary.runs:
+        modes = [m for m in (run.online, run.step_by_step) if m is not None]
+        if not modes:
+            yield {"run": run.index, "world_seed": run.world_seed, "mode": "", "delay_ms": run.delay_ms,
+                   "success": False, "failure": run.failure}
+        for m in modes:
+            yield {
+                "run": run.index, "world_seed": run.world_seed, "mode": m.mode, "delay_ms": run.delay_ms,
+                "one_way_delay_s": run.one_way_delay_s, "statements": len(m.statements), "virtual_s": m.virtual_s,
+                "total_s": m.total_s, "reported_total_s": m.reported_total_s, "robot_total_s": m.robot_total_s,
+                "mean_statement_s": m.mean_statement_s, "mean_submit_to_report_s": m.mean_submit_to_report_s,
+                "lag_s": m.lag_s, "statement_s": ";".join("" if t.statement_s is None else f"{t.statement_s:.4f}"
+                                                          for t in m.statements),
+                "success": m.success and run.success, "failure": m.failure or ("" if run.success else run.failure),
+            }
+
+
+def _write(report, out: Path, columns: tuple[str, ...], rows) -> list[Path]:
+    """The ``--json`` document as ``out/results.json`` and ``rows`` as ``out/results.csv``."""
     out.mkdir(parents=True, exist_ok=True)
     json_path, csv_path = out / "results.json", out / "results.csv"
     json_path.write_text(json.dumps(report.model_dump(mode="json"), indent=1) + "\n", encoding="utf-8")
     with csv_path.open("w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
+        writer = csv.DictWriter(f, fieldnames=columns)
         writer.writeheader()
-        for run in report.summary.runs:
-            modes = [m for m in (run.online, run.step_by_step) if m is not None]
-            if not modes:
-                writer.writerow({"run": run.index, "world_seed": run.world_seed, "mode": "", "delay_ms": run.delay_ms,
-                                 "success": False, "failure": run.failure})
-            for m in modes:
-                writer.writerow({
-                    "run": run.index, "world_seed": run.world_seed, "mode": m.mode, "delay_ms": run.delay_ms,
-                    "one_way_delay_s": run.one_way_delay_s, "statements": len(m.statements), "virtual_s": m.virtual_s,
-                    "total_s": m.total_s, "reported_total_s": m.reported_total_s, "robot_total_s": m.robot_total_s,
-                    "mean_statement_s": m.mean_statement_s, "mean_submit_to_report_s": m.mean_submit_to_report_s,
-                    "lag_s": m.lag_s, "statement_s": ";".join("" if t.statement_s is None else f"{t.statement_s:.4f}"
-                                                              for t in m.statements),
-                    "success": m.success and run.success, "failure": m.failure or ("" if run.success else run.failure),
-                })
+        writer.writerows(rows)
     return [json_path, csv_path]
-
 
 # -- the grasp, extract, insert and transfer trials ------------------------------------------------
 KIND_CSV_COLUMNS = (
@@ -121,21 +129,18 @@ def kind_table_lines(summary: KindSummary) -> list[str]:
 
 
 def write_kind_results(report: KindReport, out: Path) -> list[Path]:
-    """``out/results.json`` and ``out/results.csv`` (one row per run); returns the paths written."""
-    out.mkdir(parents=True, exist_ok=True)
-    json_path, csv_path = out / "results.json", out / "results.csv"
-    json_path.write_text(json.dumps(report.model_dump(mode="json"), indent=1) + "\n", encoding="utf-8")
-    with csv_path.open("w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=KIND_CSV_COLUMNS)
-        writer.writeheader()
-        for r in report.summary.runs:
-            writer.writerow({
-                "kind": r.kind, "mode": r.mode, "run": r.index, "world_seed": r.world_seed, "clock": r.clock,
-                "delay_ms": r.delay_ms, "reached": r.reached, "success": r.success, "total_s": r.total_s,
-                "robot_total_s": r.robot_total_s, "virtual_s": r.virtual_s, "alarms": r.alarms,
-                "statements": len(r.statements),
-                "statement_s": ";".join("" if t.statement_s is None else f"{t.statement_s:.4f}" for t in r.statements),
-                "robot_run_s": ";".join("" if t.robot_run_s is None else f"{t.robot_run_s:.4f}" for t in r.statements),
-                "failure": r.failure or "",
-            })
-    return [json_path, csv_path]
+    """``out/results.json`` and ``out/results.csv`` (one row per run); the paths written."""
+    return _write(report, out, KIND_CSV_COLUMNS, _kind_rows(report))
+
+
+def _kind_rows(report: KindReport):
+    for r in report.summary.runs:
+        yield {
+            "kind": r.kind, "mode": r.mode, "run": r.index, "world_seed": r.world_seed, "clock": r.clock,
+            "delay_ms": r.delay_ms, "reached": r.reached, "success": r.success, "total_s": r.total_s,
+            "robot_total_s": r.robot_total_s, "virtual_s": r.virtual_s, "alarms": r.alarms,
+            "statements": len(r.statements),
+            "statement_s": ";".join("" if t.statement_s is None else f"{t.statement_s:.4f}" for t in r.statements),
+            "robot_run_s": ";".join("" if t.robot_run_s is None else f"{t.robot_run_s:.4f}" for t in r.statements),
+            "failure": r.failure or "",
+        }
