@@ -17,6 +17,8 @@ What keeps the channels honest (``health()`` says it all at once):
 * no message ends a channel: an error while decoding or handling one, or in a report or
   telemetry listener, is logged with its traceback, counted (``errors``, ``last_error``) and the
   loop goes on;
+* the loop only moves bytes: listeners run on a thread of their own, in arrival order
+  (``server.delivery``), so a slow or blocked listener never delays a heartbeat or a STOP;
 * liveness: once greeted the client sends a ``Heartbeat`` every ``HEARTBEAT_INTERVAL_S`` through
   the same writer as units; a ``SilenceWatch`` per channel (event-loop monotonic time) calls the
   command channel *silent* and telemetry *stale* past the silence limit, and a socket that stays
@@ -41,6 +43,7 @@ from pydantic import BaseModel
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 
+from server.delivery import Delivery
 from shared.errors import TeleprogError
 from shared.language.statements import Statement
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
@@ -158,6 +161,10 @@ class RobotClient:
         self._tasks: list[asyncio.Task] = []
         self._closing = False
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._delivery = Delivery(name=f"robot-listeners {self.url}", on_error=lambda where, exc: self._record_error(
+            f"a listener ({where})", exc))
+        """Reports, telemetry and restarts reach the listeners on this thread, never on the loop
+        (``server.delivery``): nothing a listener does can starve the heartbeats."""
 
     # -- lifecycle ------------------------------------------------------------------------------
     async def __aenter__(self) -> RobotClient:
@@ -183,6 +190,7 @@ class RobotClient:
             t.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
         self._tasks = []
+        self._delivery.close()
 
     def on_report(self, listener: Callable[[StatusReport], None]) -> None:
         self._report_listeners.append(listener)
@@ -370,10 +378,7 @@ class RobotClient:
             futures.clear()
         self.buffer_full = None
         for listener in self._restart_listeners:
-            try:
-                listener(restart)
-            except Exception as exc:  # noqa: BLE001
-                self._record_error("a restart listener", exc)
+            self._delivery.post(listener, restart)
 
     async def _heartbeats(self, ws: ClientConnection) -> None:
         """A heartbeat every interval once greeted, through the one writer."""
@@ -423,15 +428,7 @@ class RobotClient:
                 self.buffer_full = msg.detail
         elif isinstance(msg, StatusReport) and msg.report_seq > before:
             self.reports.append(msg)
-            if msg.state.final:
-                future = self._final_future(msg.number)
-                if not future.done():
-                    future.set_result(msg)
-            for listener in self._report_listeners:
-                try:
-                    listener(msg)
-                except Exception as exc:  # noqa: BLE001 - a listener must not end the channel
-                    self._record_error(f"a report listener (statement {msg.number})", exc)
+            self._delivery.post(self._deliver_report, msg)
         elif isinstance(msg, RecoveryAck):
             if cmd is not None and msg.applied and isinstance(cmd, (Resume, SkipCurrent, AbortFlush)):
                 self.halted = None
@@ -477,7 +474,29 @@ class RobotClient:
             return
         self.telemetry = frame
         for listener in self._telemetry_listeners:
+            self._delivery.post(listener, frame, droppable=True)
+
+    # -- the listeners' thread ------------------------------------------------------------------
+    def _deliver_report(self, msg: StatusReport) -> None:
+        """On the delivery thread: the listeners take a report, then a final one settles its
+        ``wait_final`` (on the loop), so whoever waits sees what the listeners made of it."""
+        for listener in self._report_listeners:
             try:
-                listener(frame)
+                listener(msg)
             except Exception as exc:  # noqa: BLE001 - a listener must not end the channel
-                self._record_error("a telemetry listener", exc)
+                self._record_error(f"a report listener (statement {msg.number})", exc)
+        if msg.state.final and self._loop is not None and not self._loop.is_closed():
+            try:
+                self._loop.call_soon_threadsafe(self._settle_final, msg)
+            except RuntimeError:  # the loop closed meanwhile: nobody waits any more
+                pass
+
+    def _settle_final(self, msg: StatusReport) -> None:
+        future = self._final_future(msg.number)
+        if not future.done():
+            future.set_result(msg)
+
+    def flush_listeners(self, timeout: float = 5.0) -> bool:
+        """Wait (from any thread but the delivery's) until the listeners have taken every message
+        received so far."""
+        return self._delivery.flush(timeout)

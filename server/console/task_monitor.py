@@ -82,6 +82,9 @@ class _RobotSide:
     coordinator: TaskCoordinator
     expectations: dict[int, _Expectation] = field(default_factory=dict)
     matched: int = 0  # robot actions already matched to expectations
+    playing: set[int] = field(default_factory=set)  # sent ids whose range is being played
+    early_finals: dict[int, tuple[str, int | None]] = field(default_factory=dict)
+    """Final statuses of sent statements whose expectations were still being played."""
 
 
 class TaskMonitor:
@@ -129,17 +132,29 @@ class TaskMonitor:
         source = None
         if isinstance(event, PreviewChanged) and event.preview.active and self._preview_source is not None:
             source = self._preview_source(event.preview.stop)  # read outside this part's lock
+        if isinstance(event, RangeSubmitted):
+            # the play of a range takes a while: never under the lock every telemetry frame takes
+            with self._lock:
+                self._robot.playing.update(event.ids)
+            expected = self._expected_actions(event)
+            with self._lock:
+                self._robot.playing.difference_update(event.ids)
+                for sent_id, exp in expected.items():
+                    self._robot.expectations[sent_id] = exp
+                    final = self._robot.early_finals.pop(sent_id, None)
+                    if final is not None:  # it ended while the range was being played
+                        exp.final_seen, (exp.status, exp.number) = True, final
+            return
+        play = self._preview_play(event.preview, source) if isinstance(event, PreviewChanged) else None
         with self._lock:
             if isinstance(event, ArmChanged):
                 changed = self._observe_virtual(event)
             elif isinstance(event, RemoteArmChanged):
                 changed = self._observe_robot(event)
-            elif isinstance(event, RangeSubmitted):
-                self._expect(event)
             elif isinstance(event, SentChanged):
                 changed = self._statuses(event)
             elif isinstance(event, PreviewChanged):
-                changed = self._follow_preview(event.preview, source)
+                changed = self._follow_preview(event.preview, source, play)
             if changed:
                 self._version += 1
                 view = self._view()
@@ -178,16 +193,25 @@ class TaskMonitor:
             )
         return changed
 
-    def _follow_preview(self, pv: PreviewView, source) -> bool:
+    def _preview_play(self, pv: PreviewView, source) -> _PreviewPlay | None:
+        """The play of the previewed range (outside the lock): the one kept when its key is the
+        same, else a new one."""
         if not pv.active or source is None:
-            was, self._preview = self._preview is not None, None
-            return was
+            return None
         statements, start_q, poses, held = source
         key = (pv.start, pv.stop, tuple(statements), np.asarray(start_q).tobytes(),
                tuple(sorted((k, np.asarray(v).tobytes()) for k, v in poses.items())), held)
-        play = self._preview
-        if play is None or play.key != key:
-            play = self._preview = _PreviewPlay(key, pv.start, self._play(statements, start_q, poses, held))
+        kept = self._preview
+        if kept is not None and kept.key == key:
+            return kept
+        return _PreviewPlay(key, pv.start, self._play(statements, start_q, poses, held))
+
+    def _follow_preview(self, pv: PreviewView, source, play: _PreviewPlay | None) -> bool:
+        if not pv.active or source is None or play is None:
+            was, self._preview = self._preview is not None, None
+            return was
+        if self._preview is not play:
+            self._preview = play
         shown = self._preview_state(play, pv.t)
         if shown == play.shown:
             return False
@@ -214,14 +238,14 @@ class TaskMonitor:
         in_range = tuple(a for a in upto if a.statement is not None and a.statement > play.start)
         return (in_range, tuple(marking))
 
-    def _expect(self, event: RangeSubmitted) -> None:
-        """Play the submitted range on the virtual cell from where it starts and keep, per
-        statement, the actions the play recognised."""
+    def _expected_actions(self, event: RangeSubmitted) -> dict[int, _Expectation]:
+        """Play the submitted range on the virtual cell from where it starts: per sent
+        statement, the actions the play recognised (outside the lock)."""
         if event.start_q is None:
-            return
+            return {}
         parsed = parse_program("\n".join(event.texts))
         if not parsed.ok or len(parsed.statements) != len(event.ids):
-            return
+            return {}
         world = ObjectWorld(self._ctx.cell)
         r = self._last_remote
         if r is not None:
@@ -230,18 +254,22 @@ class TaskMonitor:
             result = recognise_program(parsed.statements, self._ctx.cell, self.space, np.asarray(event.start_q), world)
         except Exception as exc:
             log.warning("could not play the submitted range for task monitoring: %s", exc)
-            return
+            return {}
         per: dict[int, list[str]] = {i: [] for i in range(len(event.ids))}
         for a in result.actions:
             if a.statement is not None:
                 per[a.statement - 1].append(a.action)
-        for i, sent_id in enumerate(event.ids):
-            self._robot.expectations[sent_id] = _Expectation(sent_id, event.texts[i], per[i])
+        return {sent_id: _Expectation(sent_id, event.texts[i], per[i]) for i, sent_id in enumerate(event.ids)}
 
     def _statuses(self, event: SentChanged) -> bool:
         for item in event.sent.items:
             exp = self._robot.expectations.get(item.id)
-            if exp is not None and item.status in FINAL_SENT and not exp.final_seen:
+            if item.status not in FINAL_SENT:
+                continue
+            if exp is None:
+                if item.id in self._robot.playing:
+                    self._robot.early_finals[item.id] = (item.status.value, item.number)
+            elif not exp.final_seen:
                 exp.final_seen, exp.status, exp.number = True, item.status.value, item.number
         return False  # checked on the next remote view, which carries the state the status ends in
 

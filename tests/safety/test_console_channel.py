@@ -5,6 +5,9 @@ Real ``teleprog robot`` processes, the real ``RobotClient`` over loopback WebSoc
 * a report listener and a telemetry listener that raise (as ``Session.on_report`` once did on a
   statement it could not write) leave both channels up: the error is counted and kept, and later
   submissions are still answered and tracked to their final status;
+* listeners that take longer than the robot's silence limit (as the task monitor's play of a
+  submitted range once did under a lock every telemetry frame waits on) do not silence the
+  console: heartbeats go on, the robot never halts itself, and STOP is acknowledged at once;
 * the robot killed and started again on the same port while statements are queued: the client
   reconnects to the new session, everything of the old one fails with ``RobotRestarted`` (its
   fate is unknown), nothing of it is sent to the new robot, and a new submission runs.
@@ -72,6 +75,50 @@ def test_raising_listeners_leave_the_channels_up_and_later_submissions_tracked(r
     assert health.connected and health.command == "live" and reconnects == 0
     assert health.errors >= len(seen) + 1
     assert "ValueError" in (health.last_error or "") or "OverflowError" in (health.last_error or "")
+
+
+def test_slow_listeners_never_silence_the_console_or_hold_up_stop(robot) -> None:
+    import threading
+    import time
+
+    busy = threading.Lock()  # a session lock a page request holds for seconds
+
+    async def run():
+        async with RobotClient(robot.url) as client:
+            frames: list[float] = []
+
+            def slow_report(report) -> None:
+                with busy:
+                    time.sleep(0.5)
+
+            def slow_frame(frame) -> None:
+                with busy:
+                    frames.append(time.monotonic())
+
+            client.on_report(slow_report)
+            client.on_telemetry(slow_frame)
+            numbers = await client.submit(_slow(4), timeout=10)
+            heard = client.heartbeats_heard
+            await asyncio.to_thread(busy.acquire)  # 3 s with every listener stuck behind it
+            try:
+                await asyncio.sleep(3.0)
+                t0 = time.monotonic()
+                ack = await client.stop(timeout=5)
+                stop_s = time.monotonic() - t0
+                halted = client.halted
+                health = client.health()
+            finally:
+                busy.release()
+            await client.abort(timeout=5)
+            await client.wait_final(numbers, timeout=20)
+            return ack, stop_s, halted, health, client.heartbeats_heard - heard, frames
+
+    ack, stop_s, halted, health, heartbeats, frames = asyncio.run(run())
+    assert halted is None, f"the robot halted itself while the listeners were busy: {halted}"
+    assert ack.applied and stop_s < 1.0, (ack, stop_s)  # STOP went out and came back at once
+    assert health.command == "live" and health.connected
+    assert heartbeats >= 10  # the robot's heartbeats kept arriving (0.2 s apart) through the 3 s
+    assert frames  # telemetry reached its listener again once the lock was free
 
 
 def test_robot_restart_fails_the_old_session_and_a_new_submission_runs(robot, tmp_path) -> None:
