@@ -22,12 +22,12 @@ HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message
 # WebSocket worker all run as for a real mouse. Headless Chromium hands real mouse moves to the
 # page once per drawn frame, and draws in software here (a few frames a second), so this is how a
 # test or benchmark feeds the page at a display's rate. Returns the dispatch times (page clock, ms).
-POINTER_SWEEP_JS = """([x0, y, amplitude, hz, seconds, period]) => new Promise((done) => {
+POINTER_SWEEP_JS = """([x0, y, amplitude, hz, seconds, period, all]) => new Promise((done) => {
   const canvas = [...document.querySelectorAll("canvas")].find((c) => c.width > 0 && c.clientWidth > 300);
   const t0 = performance.now(); const times = [];
   const fire = () => {
     const now = performance.now(); const t = (now - t0) / 1000;
-    if (t >= seconds) { done(times); return; }
+    if (all ? times.length >= Math.round(hz * seconds) : t >= seconds) { done(times); return; }
     canvas.dispatchEvent(new PointerEvent("pointermove", {
       clientX: x0 + amplitude * Math.sin(2 * Math.PI * t / period), clientY: y, pointerId: 1,
       pointerType: "mouse", isPrimary: true, buttons: 1, bubbles: true, cancelable: true}));
@@ -146,11 +146,13 @@ class ConsolePage:
         self.page.mouse.up()
 
     def pointer_sweep(self, x0: float, y: float, amplitude: float, hz: float, seconds: float,
-                      period: float = 2.0) -> list[float]:
+                      period: float = 2.0, every_move: bool = False) -> list[float]:
         """With the mouse button held, feed the canvas ``hz`` pointer moves a second for
         ``seconds``, sweeping ``amplitude`` px either side of ``x0`` (POINTER_SWEEP_JS); returns
-        the dispatch times (page clock, ms)."""
-        return self.page.evaluate(POINTER_SWEEP_JS, [x0, y, amplitude, hz, seconds, period])
+        the dispatch times (page clock, ms). With ``every_move`` the sweep makes all
+        ``hz * seconds`` moves however long a busy page takes for them (a pacing count), else it
+        ends after ``seconds`` (a rate)."""
+        return self.page.evaluate(POINTER_SWEEP_JS, [x0, y, amplitude, hz, seconds, period, every_move])
 
     def drag_gizmo_x(self, pixels: float) -> list[float]:
         """Grab the gizmo's x arrow (the camera looks at the tool from -y, so world x points

@@ -53,7 +53,7 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
             before = len(sent)
             page.mouse.down()
             t0 = time.perf_counter()
-            dispatched = ui.pointer_sweep(cx + grab, cy, amplitude=40, hz=100, seconds=2.0)
+            dispatched = ui.pointer_sweep(cx + grab, cy, amplitude=40, hz=100, seconds=2.0, every_move=True)
             page.mouse.up()
             time.sleep(0.3)
             page.evaluate("1")  # let Playwright hand over the frames still on their way
@@ -62,8 +62,11 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
             if moves >= 10:
                 break
     assert moves >= 10, "no grab point on the gizmo's x arrow moved the arm"
-    assert len(dispatched) >= 150, f"the page ran only {len(dispatched)} of 200 pointer moves"
+    assert len(dispatched) == 200, f"the page ran {len(dispatched)} of 200 pointer moves"
+    # a page busy drawing in software runs the moves late, and the sweep lasts longer: viser's
+    # allowance below grows with it, so the check is of the pacing, not of this machine's speed
     sweep_s = (dispatched[-1] - dispatched[0]) / 1000.0
+    assert sweep_s < 200 / 30, f"200 pointer moves took the page {sweep_s:.1f} s: under 30 a second, no pacing to compare"
     # at most one send per 50 ms over the sweep, and one each for the press and the release
     viser_most = sweep_s / VISER_INTERVAL_S + 3
     assert updates > 1.5 * viser_most, (

@@ -116,10 +116,11 @@ def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) ->
     robot_seen: list[list[str]] = []
     wait_for(lambda: (distinct(robot_seen, ui.task_actions("robot")), robot_seen[-1] == TASK_ACTIONS)[1],
              timeout=90, interval=0.1, what=f"the robot's four task actions on the Task tab (seen {robot_seen})")
-    # one by one: each list the page showed is the one before it and one action more (or two at
-    # once where a task call follows another within one telemetry frame)
+    # in order, as the reports come: each list the page showed is the start of the next, and the
+    # page showed at least one in between (grasp and part, mate and release are each a few tenths
+    # of a second apart, which a loaded machine's page may show as one step)
     assert all(s == TASK_ACTIONS[:len(s)] for s in robot_seen), robot_seen
-    assert len(robot_seen) >= 4, robot_seen
+    assert robot_seen[0] == [] and len(robot_seen) >= 3, robot_seen
     assert "PEGINHOLE(PEG,HOLE2)" in ui.task_marking("robot") and "HOLEEMPTY(HOLE1)" in ui.task_marking("robot")
     assert ui.page.locator("[data-deviation]").count() == 0
     lines = ui.wait_sent_final(len(expected), timeout=90)
