@@ -458,7 +458,7 @@ class Dispatch:
 
     # -- reports -------------------------------------------------------------------------------
     def on_report(self, report: StatusReport) -> None:
-        """A ``StatusReport`` from the robot (on the client's loop; a replay may call it too)."""
+        """A ``StatusReport`` from the robot (on the robot client's delivery thread; a replay may call it too)."""
         with self._ctx.lock:
             s = self._by_number.get(report.number)
             if s is None:

@@ -97,7 +97,7 @@ class RemoteMirror:
 
     # -- what the robot says -------------------------------------------------------------------
     def on_telemetry(self, frame: TelemetryFrame) -> None:
-        """A telemetry frame (from the robot client on its loop, 50 Hz, or a replay): publish
+        """A telemetry frame (from the robot client's delivery thread, 50 Hz, or a replay): publish
         the remote arm at a lower rate; check divergence when the robot's state changes."""
         now = self._ctx.clock()
         self._ctx.bus.telemetry.call((frame,))

@@ -2,8 +2,9 @@
 
 ``server.robot_client.RobotClient`` satisfies :class:`RobotLink` over real WebSockets; tests hand
 the session an in-memory fake of the same protocol. Callbacks (``on_report`` and friends) run on
-the client's asyncio loop; the coroutines are scheduled there by the session and never waited
-for from a page handler.
+the client's delivery thread, in arrival order, never on its asyncio loop (``server.delivery``):
+they may take the session's lock without delaying a heartbeat. The coroutines are scheduled on
+the loop by the session and never waited for from a page handler.
 """
 
 from __future__ import annotations
