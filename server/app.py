@@ -44,11 +44,11 @@ class ConsoleState:
     recorder: SessionRecorder | None = None
 
 
-def _build_page(viser_server, session: Session) -> None:
+def _build_page(viser_server, session: Session, trials: TrialBatches) -> None:
     """The viser scene and panels (``webui.console.build_console``)."""
     from webui.console import build_console
 
-    build_console(viser_server, session)
+    build_console(viser_server, session, trials)
 
 
 def create_app(
@@ -87,7 +87,7 @@ def create_app(
         trials = TrialBatches(settings.cell)
         try:
             if build_page:
-                _build_page(viser_server, session)
+                _build_page(viser_server, session, trials)
             holder["state"] = ConsoleState(settings, session, viser_server.get_port(), recorder)
             app.state.console = holder["state"]
             app.state.recordings = RecordingsSource(Path(settings.record_dir), lambda: _recording_now(recorder))

@@ -46,6 +46,7 @@ from server.console import (
     TerrainChanged,
 )
 from server.console.events import TaskChanged
+from server.trials.service import TrialBatches
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
 from webui.legend import Legend
@@ -61,6 +62,7 @@ from webui.scene import CellScene
 from webui.status_bar import StatusBar
 from webui.task_panel import TaskPanel
 from webui.stop_header import StopHeader
+from webui.trials_panel import TrialsPanel
 from webui.stream_indicator import StreamIndicator
 from webui.terrain_overlay import TerrainOverlay
 from webui.terrain_panel import TerrainPanel
@@ -236,7 +238,7 @@ class Console:
         self.collision.show(view.triangles, warning)
 
 
-def build_console(server: viser.ViserServer, session: Session) -> Console:
+def build_console(server: viser.ViserServer, session: Session, trials: TrialBatches | None = None) -> Console:
     """Create the scene and every panel for ``session`` on ``server`` and keep them in step
     with the session's events. Call once, after the session exists and before clients load."""
     server.gui.configure_theme(show_share_button=False, control_width="large")
@@ -274,6 +276,9 @@ def build_console(server: viser.ViserServer, session: Session) -> Console:
         preview = PreviewPanel(server, session, actions)
     with tabs.add_tab("Submit", viser.Icon.SEND):
         monitor = MonitorPanel(server, session, actions)
+        if trials is not None:  # headless experiments on a virtual clock (the same batches as /api/trials)
+            with server.gui.add_folder("Trials (virtual time)", expand_by_default=False):
+                TrialsPanel(server, trials, actions)
     task = None
     if session.task.available:
         with tabs.add_tab("Task", viser.Icon.SITEMAP):
