@@ -173,12 +173,20 @@ def _hull_vertices(vertices: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(np.unique(vertices, axis=0))
 
 
-def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) -> OBBTree:
-    """Build the hierarchy of one body (vertices (V, 3) and faces (F, 3) in the body frame)."""
+def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1, compiled: bool = True) -> OBBTree:
+    """Build the hierarchy of one body (vertices (V, 3) and faces (F, 3) in the body frame).
+    ``compiled``: the numba build (``obb_build``); False runs this module's Python reference of
+    the same algorithm (kept to check the compiled one against)."""
     vertices = np.asarray(vertices, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
-    tris_all = vertices[faces]
+    tris_all = np.ascontiguousarray(vertices[faces])
     areas_all = triangle_areas(tris_all)
+    if compiled and len(faces):
+        from shared.collision.obb_build import build_nodes
+
+        center, axes, half, radius, left, right, starts, counts, tri_ids = build_nodes(
+            tris_all, areas_all, int(leaf_size), PAD)
+        return _tree(vertices, tris_all, center, axes, half, radius, left, right, starts, counts, tri_ids)
     centers, axes_l, halves, radii, lefts, rights, starts, counts = [], [], [], [], [], [], [], []
     order: list[np.ndarray] = []
     n_tris_placed = 0
@@ -209,19 +217,24 @@ def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1) 
             # pushed right first so the left child is numbered next (preorder)
             stack.append((parts[1], node, False))
             stack.append((parts[0], node, True))
-    tri_ids = np.concatenate(order)
+    return _tree(vertices, tris_all, np.array(centers), np.array(axes_l), np.array(halves), np.array(radii),
+                 np.array(lefts, dtype=np.int64), np.array(rights, dtype=np.int64), np.array(starts, dtype=np.int64),
+                 np.array(counts, dtype=np.int64), np.concatenate(order))
+
+
+def _tree(vertices, tris_all, center, axes, half, radius, left, right, starts, counts, tri_ids) -> OBBTree:
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     sphere_center = (lo + hi) / 2.0
     sphere_radius = float(np.linalg.norm(vertices - sphere_center, axis=1).max()) + PAD
     return OBBTree(
-        center=np.array(centers),
-        axes=np.array(axes_l),
-        half=np.array(halves),
-        radius=np.array(radii),
-        left=np.array(lefts, dtype=np.int64),
-        right=np.array(rights, dtype=np.int64),
-        tri_start=np.array(starts, dtype=np.int64),
-        tri_count=np.array(counts, dtype=np.int64),
+        center=center,
+        axes=axes,
+        half=half,
+        radius=radius,
+        left=left,
+        right=right,
+        tri_start=starts,
+        tri_count=counts,
         tris=np.ascontiguousarray(tris_all[tri_ids]),
         tri_ids=tri_ids.astype(np.int64),
         sphere_center=sphere_center,
