@@ -37,7 +37,7 @@ class Delivery:
     """A FIFO of calls made on one daemon thread (started with the first call)."""
 
     name: str = "robot-listeners"
-    max_backlog: int = 100
+    max_backlog: int = 10  # frames (0.2 s at 50 Hz): a report never waits long behind stale telemetry
     on_error: Callable[[str, BaseException], None] | None = None
     dropped: int = 0
     _queue: deque[_Call] = field(default_factory=deque)

@@ -95,6 +95,8 @@ class TaskMonitor:
         self._preview_source = preview_source
         self._preview: _PreviewPlay | None = None
         self._lock = threading.Lock()
+        self._play_lock = threading.Lock()  # a previewed range's play, outside ``_lock``
+        self._played: _PreviewPlay | None = None  # the newest play (``_preview`` while previewing)
         cell = ctx.cell
         path = task_file or task_file_for_cell(cell.name)
         self.space: TaskSpace | None = None
@@ -201,10 +203,12 @@ class TaskMonitor:
         statements, start_q, poses, held = source
         key = (pv.start, pv.stop, tuple(statements), np.asarray(start_q).tobytes(),
                tuple(sorted((k, np.asarray(v).tobytes()) for k, v in poses.items())), held)
-        kept = self._preview
-        if kept is not None and kept.key == key:
-            return kept
-        return _PreviewPlay(key, pv.start, self._play(statements, start_q, poses, held))
+        with self._play_lock:  # one play at a time: the player's events must not each start one
+            kept = self._played
+            if kept is not None and kept.key == key:
+                return kept
+            self._played = _PreviewPlay(key, pv.start, self._play(statements, start_q, poses, held))
+            return self._played
 
     def _follow_preview(self, pv: PreviewView, source, play: _PreviewPlay | None) -> bool:
         if not pv.active or source is None or play is None:
