@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 
 log = logging.getLogger("teleprog.client")
 
-_IDLE_POLL_S = 0.5
-
 
 @dataclass
 class _Call:
@@ -44,7 +42,6 @@ class Delivery:
     _ready: threading.Condition = field(default_factory=threading.Condition)
     _thread: threading.Thread | None = None
     _closed: bool = False
-    _busy: bool = False
 
     def post(self, fn: Callable[..., None], *args: object, droppable: bool = False) -> None:
         """Queue ``fn(*args)``; ``droppable`` calls (telemetry) may be dropped under backlog."""
@@ -69,29 +66,21 @@ class Delivery:
                                 self.dropped)
                 return
 
-    def flush(self, timeout: float = 5.0) -> bool:
-        """Wait until every call queued so far has been made (tests, shutdown). True when it has."""
-        with self._ready:
-            return self._ready.wait_for(lambda: not self._queue and not self._busy, timeout)
-
     def close(self) -> None:
         """Make no further calls (those still queued are dropped); the thread ends."""
         with self._ready:
             self._closed = True
             self._queue.clear()
-            self._ready.notify_all()
+            self._ready.notify()
 
     def _run(self) -> None:
         while True:
             with self._ready:
                 while not self._queue and not self._closed:
-                    self._ready.wait(_IDLE_POLL_S)
+                    self._ready.wait()
                 if self._closed:
-                    self._busy = False
-                    self._ready.notify_all()
                     return
                 call = self._queue.popleft()
-                self._busy = True
             try:
                 call.fn(*call.args)
             except Exception as exc:  # noqa: BLE001 - a listener must not end the delivery
@@ -99,7 +88,3 @@ class Delivery:
                     self.on_error(getattr(call.fn, "__qualname__", repr(call.fn)), exc)
                 else:
                     log.exception("a listener failed")
-            finally:
-                with self._ready:
-                    self._busy = False
-                    self._ready.notify_all()

@@ -495,8 +495,3 @@ class RobotClient:
         future = self._final_future(msg.number)
         if not future.done():
             future.set_result(msg)
-
-    def flush_listeners(self, timeout: float = 5.0) -> bool:
-        """Wait (from any thread but the delivery's) until the listeners have taken every message
-        received so far."""
-        return self._delivery.flush(timeout)

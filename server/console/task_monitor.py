@@ -74,7 +74,7 @@ class _PreviewPlay:
     key: tuple
     start: int
     recognition: ProgramRecognition | None
-    shown: tuple = ()  # (actions shown, marking) last emitted
+    shown: tuple | None = ()  # (actions shown, marking) last emitted
 
 
 @dataclass
@@ -214,8 +214,8 @@ class TaskMonitor:
         if not pv.active or source is None or play is None:
             was, self._preview = self._preview is not None, None
             return was
-        if self._preview is not play:
-            self._preview = play
+        if self._preview is not play:  # a preview (re)starts: shown whatever a play kept showed before
+            self._preview, play.shown = play, None
         shown = self._preview_state(play, pv.t)
         if shown == play.shown:
             return False
