@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from shared.collision.distance import tri_tri_dist2
+from shared.collision.gjk import APART, OVERLAP, gjk_distance
 from shared.collision.tri_tri import JIT, plane_gap, seg_seg_closest, tri_tri_intersect
 
 # indices into the stats counter array
@@ -44,7 +45,9 @@ ST_TRI_TESTS = 5
 ST_DIST_NODE = 6
 ST_DIST_TRI = 7
 ST_DIST_RECT = 8
-N_STATS = 9
+ST_GJK_PIECES = 9
+ST_GJK_FALLBACK = 10
+N_STATS = 11
 FULL_SAT = True
 
 
@@ -452,8 +455,52 @@ def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, 
 
 
 @njit(**JIT)
+def _convex_distance(a, b, cv, cadjs, cadj, cps, cpn, cpc, cpr, cbf, cbn, R, t, S, SI, lam, hint, stats):
+    """Distance of two bodies made of certified convex pieces (``convex``): the least GJK
+    distance over their piece pairs, nearest bounding spheres first, each GJK bounded by the
+    best found so far. ``ok`` False when any piece pair's solids meet (or touch): their
+    surfaces may still be apart inside one another, which only the triangles can measure."""
+    na = cbn[a]
+    nb = cbn[b]
+    fa = cbf[a]
+    fb = cbf[b]
+    gaps = np.empty(na * nb)
+    for i in range(na):
+        ca = fa + i
+        for j in range(nb):
+            cb = fb + j
+            d2 = 0.0
+            for k in range(3):
+                x = R[k, 0] * cpc[cb, 0] + R[k, 1] * cpc[cb, 1] + R[k, 2] * cpc[cb, 2] + t[k] - cpc[ca, k]
+                d2 += x * x
+            gaps[i * nb + j] = math.sqrt(d2) - cpr[ca] - cpr[cb]
+    order = np.argsort(gaps)
+    best = np.inf
+    bp = (np.nan, np.nan, np.nan)
+    bq = (np.nan, np.nan, np.nan)
+    for r in range(order.shape[0]):
+        m = order[r]
+        if gaps[m] >= best:
+            break
+        ca = fa + m // nb
+        cb = fb + m % nb
+        for k in range(3):
+            hint[k] = R[k, 0] * cpc[cb, 0] + R[k, 1] * cpc[cb, 1] + R[k, 2] * cpc[cb, 2] + t[k] - cpc[ca, k]
+        stats[ST_GJK_PIECES] += 1
+        status, d, x, y = gjk_distance(cv, cadjs, cadj, cps[ca], cpn[ca], cps[cb], cpn[cb], R, t, best, S, SI, lam, hint)
+        if status == OVERLAP:
+            return False, 0.0, bp, bq
+        if status == APART and d < best:
+            best = d
+            bp = x
+            bq = y
+    return True, best, bp, bq
+
+
+@njit(**JIT)
 def scene_check(
     nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rs,
+    cv, cadjs, cadj, cps, cpn, cpc, cpr, cbf, cbn,
     Rw, tw, pairs, mode, all_tris,
     lb, wit, Rprev, tprev, have_prev,
     hit, dist, wpa, wpb, out_p, out_a, out_b, stats,
@@ -486,6 +533,10 @@ def scene_check(
     t = np.empty(3)
     C = np.empty((3, 3))
     AC = np.empty((3, 3))
+    S = np.empty((8, 9))
+    SI = np.empty((8, 2), dtype=np.int64)
+    lam = np.empty(8)
+    hint = np.empty(3)
     n_out = 0
     for p in range(pairs.shape[0]):
         m = mode[p]
@@ -544,8 +595,17 @@ def scene_check(
                 continue
             if m == 1:
                 continue
-        d, x, y, ka, kb = _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, t, C, AC,
-                                         wit[p, 0], wit[p, 1], stats)
+        ok = False
+        if cbn[a] > 0 and cbn[b] > 0:
+            ok, d, x, y = _convex_distance(a, b, cv, cadjs, cadj, cps, cpn, cpc, cpr, cbf, cbn, R, t, S, SI, lam, hint,
+                                           stats)
+            ka = -1
+            kb = -1
+            if not ok:
+                stats[ST_GJK_FALLBACK] += 1
+        if not ok:
+            d, x, y, ka, kb = _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, t, C, AC,
+                                             wit[p, 0], wit[p, 1], stats)
         dist[p] = d
         lb[p] = d
         wit[p, 0] = ka

@@ -30,12 +30,15 @@ class BodyMesh:
     """A body's triangles in its own frame: ``vertices`` (V, 3) m, ``faces`` (F, 3) indices.
 
     Triangle id ``k`` is row ``k`` of ``faces``: the id reported for interfering triangles.
+    ``shape_faces``: the ``[lo, hi)`` range of ``faces`` each of the body's shapes contributed,
+    in order (one range for a body made from raw arrays): the candidate convex pieces.
     """
 
     name: str
     vertices: np.ndarray
     faces: np.ndarray
     n_degenerate: int = 0
+    shape_faces: tuple[tuple[int, int], ...] = ()
 
     @property
     def triangles(self) -> np.ndarray:
@@ -95,6 +98,8 @@ def body_mesh(name: str, shapes: Sequence[LinkShape]) -> BodyMesh | None:
     faces: list[np.ndarray] = []
     offset = 0
     n_degenerate = 0
+    ranges: list[tuple[int, int]] = []
+    n_faces = 0
     for k, shape in enumerate(shapes):
         source = _shape_source(name, k, shape)
         mesh = posed_shape_mesh(shape)  # load_mesh_file already names the file on read errors
@@ -104,7 +109,11 @@ def body_mesh(name: str, shapes: Sequence[LinkShape]) -> BodyMesh | None:
         vertices.append(v)
         faces.append(f + offset)
         offset += len(v)
-    return BodyMesh(name, _readonly(np.concatenate(vertices)), _readonly(np.concatenate(faces)), n_degenerate)
+        ranges.append((n_faces, n_faces + len(f)))
+        n_faces += len(f)
+    return BodyMesh(
+        name, _readonly(np.concatenate(vertices)), _readonly(np.concatenate(faces)), n_degenerate, tuple(ranges)
+    )
 
 
 def body_mesh_from_arrays(name: str, vertices: np.ndarray, faces: np.ndarray, require_manifold: bool = True) -> BodyMesh:
@@ -114,4 +123,6 @@ def body_mesh_from_arrays(name: str, vertices: np.ndarray, faces: np.ndarray, re
     if faces.size and not np.issubdtype(faces.dtype, np.integer):
         raise MeshError(name, "face indices must be integers")
     n_degenerate = check_triangles(vertices, faces, name, require_manifold)
-    return BodyMesh(name, _readonly(vertices), _readonly(faces.astype(np.int64)), n_degenerate)
+    return BodyMesh(
+        name, _readonly(vertices), _readonly(faces.astype(np.int64)), n_degenerate, ((0, len(faces)),)
+    )

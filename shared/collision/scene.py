@@ -27,6 +27,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from shared.collision import kernels
+from shared.collision.convex import ConvexPieces, convex_pieces
 from shared.collision.mesh_model import BodyMesh, body_mesh
 from shared.collision.obb_tree import OBBTree, build_obb_tree, swept_rectangles
 from shared.errors import InputError, UnknownNameError
@@ -114,6 +115,50 @@ class Body:
     index: int  # link index, or index in cell.objects
     mesh: BodyMesh
     tree: OBBTree
+    #: the body's shapes as certified closed convex pieces (distances by GJK), or ``None``
+    pieces: ConvexPieces | None = None
+
+
+def _body(name: str, kind: Literal["link", "object"], index: int, mesh: BodyMesh, leaf_size: int) -> Body:
+    tree = build_obb_tree(mesh.vertices, mesh.faces, leaf_size)
+    return Body(name, kind, index, mesh, tree, convex_pieces(mesh.vertices, mesh.faces, mesh.shape_faces))
+
+
+def _pack_pieces(bodies: list[Body]) -> tuple[np.ndarray, ...]:
+    """The bodies' convex pieces in flat arrays (global vertex and piece indices): per body its
+    first piece and piece count (0: no certified pieces, the triangle descent answers)."""
+    verts: list[np.ndarray] = [np.zeros((0, 3))]
+    adj_start: list[np.ndarray] = [np.zeros(1, dtype=np.int64)]
+    adj: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    pstart: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    pcount: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    pcenter: list[np.ndarray] = [np.zeros((0, 3))]
+    pradius: list[np.ndarray] = [np.zeros(0)]
+    body_first = np.zeros(len(bodies), dtype=np.int64)
+    body_count = np.zeros(len(bodies), dtype=np.int64)
+    n_v = 0
+    n_adj = 0
+    n_p = 0
+    for k, body in enumerate(bodies):
+        pc = body.pieces
+        if pc is None:
+            continue
+        verts.append(pc.vertices)
+        adj_start.append(pc.adj_start[1:] + n_adj)
+        adj.append(pc.adj + n_v)
+        pstart.append(pc.start + n_v)
+        pcount.append(pc.count)
+        pcenter.append(pc.center)
+        pradius.append(pc.radius)
+        body_first[k] = n_p
+        body_count[k] = pc.n_pieces
+        n_v += len(pc.vertices)
+        n_adj += len(pc.adj)
+        n_p += pc.n_pieces
+    return (
+        np.concatenate(verts), np.concatenate(adj_start), np.concatenate(adj), np.concatenate(pstart),
+        np.concatenate(pcount), np.concatenate(pcenter), np.concatenate(pradius), body_first, body_count,
+    )
 
 
 @dataclass(frozen=True)
@@ -124,7 +169,8 @@ class PackedScene:
     max_depth: int
 
     @classmethod
-    def pack(cls, trees: list[OBBTree]) -> PackedScene:
+    def pack(cls, bodies: list[Body]) -> PackedScene:
+        trees = [b.tree for b in bodies]
         node_off = np.cumsum([0] + [t.n_nodes for t in trees])
         tri_off = np.cumsum([0] + [len(t.tris) for t in trees])
         hull_off = np.cumsum([0] + [len(t.hull_vertices) for t in trees])
@@ -151,7 +197,8 @@ class PackedScene:
         rss = swept_rectangles(nax, nh)
         arrays = tuple(
             _frozen(np.ascontiguousarray(a))
-            for a in (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rss)
+            for a in (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rss,
+                      *_pack_pieces(bodies))
         )
         return cls(arrays, max(t.depth for t in trees))
 
@@ -164,7 +211,7 @@ def _link_bodies(robot, leaf_size: int) -> tuple[Body, ...]:
     for link in range(robot.dof + 1):
         mesh = body_mesh(f"link{link}", robot.shapes.get(link, ()))
         if mesh is not None:
-            bodies.append(Body(f"link{link}", "link", link, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+            bodies.append(_body(f"link{link}", "link", link, mesh, leaf_size))
     return tuple(bodies)
 
 
@@ -226,7 +273,7 @@ class SceneModel:
         self.default_object_poses = {k: np.array(v, dtype=float) for k, v in (object_poses or {}).items()}
         self.resting_pairs = frozenset(frozenset(r) for r in resting)
         self.source = source
-        self.packed = PackedScene.pack([b.tree for b in bodies])
+        self.packed = PackedScene.pack(list(bodies))
         self._local = threading.local()
         self._base_mode = np.ones(len(pairs), dtype=np.int8)
 
@@ -252,7 +299,7 @@ class SceneModel:
                 continue
             mesh = body_mesh(obj.name, obj.shapes)
             if mesh is not None:
-                bodies.append(Body(obj.name, "object", k, mesh, build_obb_tree(mesh.vertices, mesh.faces, leaf_size)))
+                bodies.append(_body(obj.name, "object", k, mesh, leaf_size))
         skip = {frozenset((i, i + 1)) for i in range(robot.dof)}
         skip |= {frozenset(p) for p in robot.description.always_in_contact}
         pairs: list[tuple[int, int]] = []
