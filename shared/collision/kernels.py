@@ -49,6 +49,8 @@ ST_GJK_PIECES = 9
 ST_GJK_FALLBACK = 10
 N_STATS = 11
 FULL_SAT = True
+#: bodies whose convex hull has more vertices than this skip the world-AABB test
+AABB_MAX_HULL = 64
 
 
 @njit(**JIT)
@@ -107,7 +109,7 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
     for k in range(3):
         for c in range(3):
             AC[k, c] = R[k, 0] * nax[j, 0, c] + R[k, 1] * nax[j, 1, c] + R[k, 2] * nax[j, 2, c]
-    if dn > 0.0:
+    if dn > 0.0 and not early:
         # the centre-to-centre direction as a 16th axis: much tighter than the spheres and the
         # 15 box axes when the boxes are far apart relative to their size (distance queries)
         u0, u1, u2 = d0 / dn, d1 / dn, d2 / dn
@@ -183,7 +185,13 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
             c2 = (c + 2) % 3
             ra = har1 * AC[r2, c] + har2 * AC[r1, c]
             rb = nh[j, c1] * AC[r, c2] + nh[j, c2] * AC[r, c1]
-            g = (abs(Tr2 * C[r1, c] - Tr1 * C[r2, c]) - ra - rb) / math.sqrt(s2)
+            g = abs(Tr2 * C[r1, c] - Tr1 * C[r2, c]) - ra - rb
+            if early:
+                # the sign decides; unnormalised (|a x b| <= 1) the gap stays a lower bound
+                if g > 0.0:
+                    return max(g, best)
+                continue
+            g /= math.sqrt(s2)
             if g > best:
                 best = g
                 if best > stop:
@@ -306,10 +314,9 @@ def _grow(a, n):
 
 @njit(**JIT)
 def _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, R, t, C, AC,
-                  all_tris, out_p, out_a, out_b, n_out, stats):
-    """OBB-tree descent and triangle tests of one pair: (hit, lower bound, n_out)."""
-    sa = np.empty(64, dtype=np.int64)
-    sb = np.empty(64, dtype=np.int64)
+                  all_tris, out_p, out_a, out_b, n_out, stats, sa, sb):
+    """OBB-tree descent and triangle tests of one pair: (hit, lower bound, n_out). ``sa``,
+    ``sb``: the node-pair stack's scratch (grown here when a descent needs more)."""
     sa[0] = broot[a]
     sb[0] = broot[b]
     top = 1
@@ -537,6 +544,8 @@ def scene_check(
     SI = np.empty((8, 2), dtype=np.int64)
     lam = np.empty(8)
     hint = np.empty(3)
+    stack_a = np.empty(64, dtype=np.int64)
+    stack_b = np.empty(64, dtype=np.int64)
     n_out = 0
     for p in range(pairs.shape[0]):
         m = mode[p]
@@ -567,8 +576,10 @@ def scene_check(
                 stats[ST_SPHERE_REJECT] += 1
                 apart = True
                 lb[p] = g
-            else:
-                # world AABBs rebuilt from the convex-hull vertices at this pose
+            elif hn[a] <= AABB_MAX_HULL and hn[b] <= AABB_MAX_HULL:
+                # world AABBs rebuilt from the convex-hull vertices at this pose (for small
+                # hulls: a tessellated capsule's 600 vertices cost more than the roots' box
+                # test that follows)
                 if not aabb_done[a]:
                     _body_aabb(Rw, tw, hv, hs, hn, a, aabb)
                     aabb_done[a] = True
@@ -587,7 +598,7 @@ def scene_check(
         _rel(Rw, tw, a, b, R, t)
         if not apart:
             h, g, n_out = _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, R, t, C, AC,
-                                        all_tris, out_p, out_a, out_b, n_out, stats)
+                                        all_tris, out_p, out_a, out_b, n_out, stats, stack_a, stack_b)
             hit[p] = h
             lb[p] = g
             if h:
@@ -659,3 +670,149 @@ def chain_link_poses(world_T_base, placements, signs, frame_joint, frame_T_link,
         for r in range(4):
             for k in range(4):
                 out[b, r, k] = M[r, 0] * L[0, k] + M[r, 1] * L[1, k] + M[r, 2] * L[2, k] + M[r, 3] * L[3, k]
+
+
+# -- one compiled entry for a whole check ---------------------------------------------------------
+# Passing a scene's ~30 arrays to a compiled function costs more than most checks' work (numba
+# types and unboxes every argument on each call: about 0.15 us an array). The model's arrays
+# therefore travel in two flat buffers, ``mf`` (float64) and ``mi`` (int64), and are viewed again
+# inside the kernel; ``mi`` starts with a header of (offset, leading dimension) per array, floats
+# first. The trailing dimensions are fixed per array (below), so the views cost a few
+# instructions each.
+
+F_NC, F_NAX, F_NH, F_NRAD, F_TV, F_BSC, F_BSR, F_HV, F_RS, F_CV, F_CPC, F_CPR, F_WTB, F_PLACE, F_SIGNS, F_FTL = range(16)
+N_FLOAT = 16
+I_NL, I_NR, I_NTS, I_NTC, I_TID, I_BROOT, I_HS, I_HN, I_CADJS, I_CADJ, I_CPS, I_CPN, I_CBF, I_CBN, I_PAIRS, I_FJ, I_BOF = range(17)
+N_INT = 17
+#: trailing shape of each packed array (its leading dimension is in the header)
+FLOAT_TRAIL = ((3,), (3, 3), (3,), (), (3, 3), (3,), (), (3,), (12,), (3,), (3,), (), (4,), (4, 4), (), (4, 4))
+INT_TRAIL = ((),) * 14 + ((2,), (), ())
+HEADER = 2 * (N_FLOAT + N_INT)
+
+
+def pack_buffers(floats: list[np.ndarray], ints: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The arrays (in the ``F_*`` / ``I_*`` order) as the ``(mf, mi)`` buffers of ``check_packed``."""
+    header = np.zeros(HEADER, dtype=np.int64)
+    chunks_f = []
+    off = 0
+    for k, (a, trail) in enumerate(zip(floats, FLOAT_TRAIL)):
+        a = np.asarray(a, dtype=np.float64)
+        if a.shape[1:] != trail:
+            raise ValueError(f"packed float array {k} has shape {a.shape}, expected (n, {trail})")
+        header[2 * k] = off
+        header[2 * k + 1] = a.shape[0]
+        chunks_f.append(a.reshape(-1))
+        off += a.size
+    chunks_i = []
+    off = HEADER
+    for k, (a, trail) in enumerate(zip(ints, INT_TRAIL)):
+        a = np.asarray(a, dtype=np.int64)
+        if a.shape[1:] != trail:
+            raise ValueError(f"packed int array {k} has shape {a.shape}, expected (n, {trail})")
+        header[2 * (N_FLOAT + k)] = off
+        header[2 * (N_FLOAT + k) + 1] = a.shape[0]
+        chunks_i.append(a.reshape(-1))
+        off += a.size
+    mf = np.concatenate(chunks_f) if chunks_f else np.zeros(0)
+    mi = np.concatenate([header, *chunks_i])
+    return mf, mi
+
+
+@njit(**JIT)
+def _f1(mf, mi, k):
+    o = mi[2 * k]
+    return mf[o:o + mi[2 * k + 1]]
+
+
+@njit(**JIT)
+def _f2(mf, mi, k, c):
+    o = mi[2 * k]
+    n = mi[2 * k + 1]
+    return mf[o:o + n * c].reshape((n, c))
+
+
+@njit(**JIT)
+def _f3(mf, mi, k, b, c):
+    o = mi[2 * k]
+    n = mi[2 * k + 1]
+    return mf[o:o + n * b * c].reshape((n, b, c))
+
+
+@njit(**JIT)
+def _i1(mi, k):
+    o = mi[2 * (N_FLOAT + k)]
+    return mi[o:o + mi[2 * (N_FLOAT + k) + 1]]
+
+
+@njit(**JIT)
+def _i2(mi, k, c):
+    o = mi[2 * (N_FLOAT + k)]
+    n = mi[2 * (N_FLOAT + k) + 1]
+    return mi[o:o + n * c].reshape((n, c))
+
+
+@njit(**JIT)
+def check_packed(mf, mi, q, world, use_chain, mode, all_tris, sf, si, out, hit, res):
+    """A whole check in one call: the links' poses from ``q`` (when ``use_chain``; ``world``
+    holds the other bodies' poses), then ``scene_check`` on every pair by ``mode``.
+
+    Per-caller state: ``sf`` (float64) holds lb (n_p), R_prev (n_b*9), t_prev (n_b*3), the
+    world poses (n_b*16); ``si`` (int64) holds wit (n_p*2), the stats, and have_prev. ``out``
+    (3, cap): interfering triangle pairs (pair, tri a, tri b). Results, in arrays the caller
+    allocates (cheaper than returning new ones): ``hit`` (n_p,) which pairs interfere, ``res``
+    (n_p, 7) per pair the distance and the witness points (world). Returns ``n_out`` as
+    ``scene_check`` (-1: ``q`` is not a finite vector of the chain's length).
+    """
+    pairs = _i2(mi, I_PAIRS, 2)
+    n_p = pairs.shape[0]
+    n_b = mi[2 * (N_FLOAT + I_BROOT) + 1]
+    lb = sf[0:n_p]
+    o = n_p
+    Rprev = sf[o:o + 9 * n_b].reshape((n_b, 3, 3))
+    o += 9 * n_b
+    tprev = sf[o:o + 3 * n_b].reshape((n_b, 3))
+    o += 3 * n_b
+    W = sf[o:o + 16 * n_b].reshape((n_b, 4, 4))
+    wit = si[0:2 * n_p].reshape((n_p, 2))
+    stats = si[2 * n_p:2 * n_p + N_STATS]
+    if use_chain:
+        placements = _f3(mf, mi, F_PLACE, 4, 4)
+        if q.shape[0] != placements.shape[0]:
+            return -1
+        for k in range(q.shape[0]):
+            if not math.isfinite(q[k]):
+                return -1
+        for b in range(n_b):
+            for r in range(4):
+                for c in range(4):
+                    W[b, r, c] = world[b, r, c]
+        chain_link_poses(_f2(mf, mi, F_WTB, 4), placements, _f1(mf, mi, F_SIGNS), _i1(mi, I_FJ),
+                         _f3(mf, mi, F_FTL, 4, 4), q, _i1(mi, I_BOF), W)
+    else:
+        for b in range(n_b):
+            for r in range(4):
+                for c in range(4):
+                    W[b, r, c] = world[b, r, c]
+    Rw = np.empty((n_b, 3, 3))
+    tw = np.empty((n_b, 3))
+    for b in range(n_b):
+        for r in range(3):
+            tw[b, r] = W[b, r, 3]
+            for c in range(3):
+                Rw[b, r, c] = W[b, r, c]
+    dist = res[:, 0]
+    wpa = res[:, 1:4]
+    wpb = res[:, 4:7]
+    n_out = scene_check(
+        _f2(mf, mi, F_NC, 3), _f3(mf, mi, F_NAX, 3, 3), _f2(mf, mi, F_NH, 3), _f1(mf, mi, F_NRAD),
+        _i1(mi, I_NL), _i1(mi, I_NR), _i1(mi, I_NTS), _i1(mi, I_NTC), _f3(mf, mi, F_TV, 3, 3), _i1(mi, I_TID),
+        _i1(mi, I_BROOT), _f2(mf, mi, F_BSC, 3), _f1(mf, mi, F_BSR), _f2(mf, mi, F_HV, 3), _i1(mi, I_HS),
+        _i1(mi, I_HN), _f2(mf, mi, F_RS, 12),
+        _f2(mf, mi, F_CV, 3), _i1(mi, I_CADJS), _i1(mi, I_CADJ), _i1(mi, I_CPS), _i1(mi, I_CPN),
+        _f2(mf, mi, F_CPC, 3), _f1(mf, mi, F_CPR), _i1(mi, I_CBF), _i1(mi, I_CBN),
+        Rw, tw, pairs, mode, all_tris,
+        lb, wit, Rprev, tprev, si[2 * n_p + N_STATS] != 0,
+        hit, dist, wpa, wpb, out[0], out[1], out[2], stats,
+    )
+    si[2 * n_p + N_STATS] = 1
+    return n_out

@@ -20,7 +20,7 @@ from __future__ import annotations
 import functools
 import threading
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import Literal, NamedTuple
 
@@ -35,6 +35,7 @@ from shared.errors import InputError, UnknownNameError
 DistanceSelection = Literal["all", "none"] | Iterable[str | tuple[str, str]] | None
 
 _INITIAL_TRI_CAPACITY = 4096
+_NO_Q = np.zeros(0)
 
 
 class InterferingPair(NamedTuple):
@@ -63,7 +64,6 @@ class PairDistance:
         return self.distance == 0.0
 
 
-@dataclass(frozen=True)
 class CollisionReport:
     """The answer of one scene check.
 
@@ -71,22 +71,84 @@ class CollisionReport:
     triangle ids. ``triangle_pairs[(a, b)]``: the (k, 2) interfering triangle id pairs.
     ``min_distance`` / ``nearest``: over the pairs whose distance was asked (``None`` if none);
     ``distances[(a, b)]`` per pair (use ``distance(a, b)`` for an order-free lookup).
+
+    Built by ``SceneModel`` from the kernel's arrays (which it owns); every field but
+    ``colliding`` is worked out when first read, so a caller that only wants the yes/no answer
+    pays for nothing else.
     """
 
-    colliding: bool
-    pairs: tuple[InterferingPair, ...]
-    triangle_pairs: dict[tuple[str, str], np.ndarray]
-    min_distance: float | None
-    nearest: PairDistance | None
-    _names: tuple[tuple[str, str], ...] = field(repr=False)
-    _dist: np.ndarray = field(repr=False)
-    _pa: np.ndarray = field(repr=False)
-    _pb: np.ndarray = field(repr=False)
-    _asked: np.ndarray = field(repr=False)
+    __slots__ = ("colliding", "_names", "_hit", "_dist", "_pa", "_pb", "_mode", "_tris", "_pairs", "_tri_pairs",
+                 "_distances", "_nearest")
 
-    @cached_property
+    def __init__(self, names, hit, dist, pa, pb, mode, tris) -> None:
+        self.colliding = tris is not None  # every interfering pair reports a triangle pair
+        self._names = names
+        self._hit = hit
+        self._dist = dist
+        self._pa = pa
+        self._pb = pb
+        self._mode = mode
+        self._tris = tris  # (pair, tri a, tri b) rows, copied out of the caller's buffers
+        self._pairs: tuple[InterferingPair, ...] | None = None
+        self._tri_pairs: dict[tuple[str, str], np.ndarray] | None = None
+        self._distances: dict[tuple[str, str], PairDistance] | None = None
+        self._nearest: tuple[float | None, PairDistance | None] | None = None
+
+    def __repr__(self) -> str:
+        return f"CollisionReport(colliding={self.colliding}, pairs={[(p.a, p.b) for p in self.pairs]}, min_distance={self.min_distance})"
+
+    def _interference(self) -> None:
+        pairs: list[InterferingPair] = []
+        tri_pairs: dict[tuple[str, str], np.ndarray] = {}
+        if self._tris is not None:
+            order, ta, tb = self._tris
+            for p in np.flatnonzero(self._hit):
+                sel = order == p
+                tp = np.column_stack([ta[sel], tb[sel]])
+                a, b = self._names[p]
+                tri_pairs[(a, b)] = tp
+                pairs.append(InterferingPair(a, b, np.unique(tp[:, 0]), np.unique(tp[:, 1])))
+        self._pairs = tuple(pairs)
+        self._tri_pairs = tri_pairs
+
+    @property
+    def pairs(self) -> tuple[InterferingPair, ...]:
+        if self._pairs is None:
+            self._interference()
+        return self._pairs
+
+    @property
+    def triangle_pairs(self) -> dict[tuple[str, str], np.ndarray]:
+        if self._tri_pairs is None:
+            self._interference()
+        return self._tri_pairs
+
+    def _nearest_pair(self) -> tuple[float | None, PairDistance | None]:
+        if self._nearest is None:
+            asked = self._mode == 2
+            if not asked.any():
+                self._nearest = (None, None)
+            else:
+                masked = np.where(asked, self._dist, np.inf)
+                p = int(np.argmin(masked))
+                d = float(masked[p])
+                a, b = self._names[p]
+                self._nearest = (d, PairDistance(a, b, d, self._pa[p].copy(), self._pb[p].copy()))
+        return self._nearest
+
+    @property
+    def min_distance(self) -> float | None:
+        return self._nearest_pair()[0]
+
+    @property
+    def nearest(self) -> PairDistance | None:
+        return self._nearest_pair()[1]
+
+    @property
     def distances(self) -> dict[tuple[str, str], PairDistance]:
-        return {self._names[p]: self._pair_distance(p) for p in np.flatnonzero(self._asked)}
+        if self._distances is None:
+            self._distances = {self._names[p]: self._pair_distance(p) for p in np.flatnonzero(self._mode == 2)}
+        return self._distances
 
     def _pair_distance(self, p: int) -> PairDistance:
         a, b = self._names[p]
@@ -221,21 +283,33 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 
 class SceneData:
-    """One caller's working state for ``SceneModel.check`` (not shared between threads)."""
+    """One caller's working state for ``SceneModel.check`` (not shared between threads).
+
+    The coherence state lives in two flat buffers handed to the compiled check as they are
+    (``kernels.check_packed``); ``lb``, ``wit``, ``R_prev``, ``t_prev`` and ``stats`` are views
+    of them."""
 
     def __init__(self, model: SceneModel) -> None:
         n_b, n_p = len(model.bodies), len(model.pair_names)
         self.robot_data = model.robot.new_data() if model.robot is not None else None
-        self.lb = np.zeros(n_p)
-        self.wit = np.full((n_p, 2), -1, dtype=np.int64)
-        self.R_prev = np.zeros((n_b, 3, 3))
-        self.t_prev = np.zeros((n_b, 3))
-        self.have_prev = False
-        self.out_p = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
-        self.out_a = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
-        self.out_b = np.empty(_INITIAL_TRI_CAPACITY, dtype=np.int64)
-        self.stats = np.zeros(kernels.N_STATS, dtype=np.int64)
+        self.sf = np.zeros(n_p + 9 * n_b + 3 * n_b + 16 * n_b)
+        self.si = np.zeros(2 * n_p + kernels.N_STATS + 1, dtype=np.int64)
+        self.lb = self.sf[:n_p]
+        self.R_prev = self.sf[n_p:n_p + 9 * n_b].reshape(n_b, 3, 3)
+        self.t_prev = self.sf[n_p + 9 * n_b:n_p + 12 * n_b].reshape(n_b, 3)
+        self.wit = self.si[:2 * n_p].reshape(n_p, 2)
+        self.stats = self.si[2 * n_p:2 * n_p + kernels.N_STATS]
+        self.wit[:] = -1
+        self.out = np.empty((3, _INITIAL_TRI_CAPACITY), dtype=np.int64)
         self.mode_cache: dict[object, np.ndarray] = {}
+
+    @property
+    def have_prev(self) -> bool:
+        return bool(self.si[-1])
+
+    @have_prev.setter
+    def have_prev(self, value: bool) -> None:
+        self.si[-1] = int(bool(value))
 
     def reset(self) -> None:
         """Forget coherence (the next check starts cold)."""
@@ -274,6 +348,7 @@ class SceneModel:
         self.resting_pairs = frozenset(frozenset(r) for r in resting)
         self.source = source
         self.packed = PackedScene.pack(list(bodies))
+        self._mf, self._mi = self._buffers()
         self._local = threading.local()
         self._base_mode = np.ones(len(pairs), dtype=np.int8)
 
@@ -438,8 +513,41 @@ class SceneModel:
             body_of_frame,
         )
 
-    def _world_poses(self, q, object_poses: Mapping[str, np.ndarray] | None, data: SceneData | None = None) -> np.ndarray:
+    def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
+        """The packed arrays and the chain's as the compiled check's two buffers."""
+        (nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, bsc, bsr, hv, hs, hn, rss,
+         cv, cadjs, cadj, cps, cpn, cpc, cpr, cbf, cbn) = self.packed.arrays
+        chain = self._chain
+        if chain is None:
+            chain = (np.eye(4), np.zeros((0, 4, 4)), np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 4, 4)),
+                     np.zeros(0, dtype=np.int64))
+        wTb, placements, signs, frame_joint, frame_T_link, body_of_frame = chain
+        mf, mi = kernels.pack_buffers(
+            [nc, nax, nh, nrad, tv, bsc, bsr, hv, rss, cv, cpc, cpr, wTb, placements, signs, frame_T_link],
+            [nl, nr, nts, ntc, tid, broot, hs, hn, cadjs, cadj, cps, cpn, cbf, cbn, self.pairs, frame_joint, body_of_frame],
+        )
+        return _frozen(mf), _frozen(mi)
+
+    def _placed(self, object_poses: Mapping[str, np.ndarray] | None) -> np.ndarray:
+        """The template poses with ``object_poses`` applied (a fresh array if any)."""
+        if not object_poses:
+            return self._template_poses
+        for name in object_poses:
+            if name not in self.default_object_poses and name not in self._index:
+                raise UnknownNameError("object", name, self.default_object_poses)
         out = self._template_poses.copy()
+        for i in self.object_bodies:
+            name = self.bodies[i].name
+            pose = object_poses.get(name)
+            if pose is not None:
+                pose = np.asarray(pose, dtype=float)
+                if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+                    raise InputError(f"pose of object {name!r} must be a finite (4, 4) transform")
+                out[i] = pose
+        return out
+
+    def _world_poses(self, q, object_poses: Mapping[str, np.ndarray] | None, data: SceneData | None = None) -> np.ndarray:
+        out = self._placed(object_poses).copy()
         if self.link_bodies:
             if q is None:
                 raise InputError("a joint vector is needed to place the robot's links")
@@ -451,22 +559,6 @@ class SceneModel:
             else:
                 poses = self.robot.link_poses(q, data.robot_data if data is not None else None)
                 out[self._link_body_list] = self.world_T_base @ poses[self.link_indices]
-        if not object_poses:
-            return out
-        overrides = object_poses
-        for name in overrides:
-            if name not in self.default_object_poses and name not in self._index:
-                raise UnknownNameError("object", name, self.default_object_poses)
-        for i in self.object_bodies:
-            name = self.bodies[i].name
-            pose = overrides.get(name)
-            if pose is None:
-                pose = self.default_object_poses.get(name, np.eye(4))
-            else:
-                pose = np.asarray(pose, dtype=float)
-                if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
-                    raise InputError(f"pose of object {name!r} must be a finite (4, 4) transform")
-            out[i] = pose
         return out
 
     def body_poses(self, q, object_poses: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
@@ -476,6 +568,14 @@ class SceneModel:
 
     # -- pair selection ----------------------------------------------------------------------------
     def _mode(self, data: SceneData, distances: DistanceSelection, skip, moved: frozenset[str]) -> np.ndarray:
+        if not skip and not moved and type(distances) is str:  # the common call, looked up at once
+            mode = data.mode_cache.get(distances)
+            if mode is None:
+                mode = data.mode_cache[distances] = self._mode_for(data, distances, skip, moved)
+            return mode
+        return self._mode_for(data, distances, skip, moved)
+
+    def _mode_for(self, data: SceneData, distances: DistanceSelection, skip, moved: frozenset[str]) -> np.ndarray:
         if isinstance(distances, str):
             if distances not in ("all", "none"):
                 raise InputError(f"distances must be 'all', 'none' or a list of body names or pairs, got {distances!r}")
@@ -517,27 +617,40 @@ class SceneModel:
         return mode
 
     # -- the check -----------------------------------------------------------------------------------
-    def _run(self, world: np.ndarray, mode: np.ndarray, data: SceneData, first_only: bool = False):
-        Rw = np.ascontiguousarray(world[:, :3, :3])
-        tw = np.ascontiguousarray(world[:, :3, 3])
+    def _run(self, world: np.ndarray, mode: np.ndarray, data: SceneData, first_only: bool = False, q=None):
+        """One compiled check: links placed from ``q`` when given (``world`` then holds the
+        objects' poses), else every body at ``world``. Returns (hit, dist, wpa, wpb, n_out)."""
+        use_chain = q is not None
+        qq = q if use_chain else _NO_Q
         n_p = len(self.pair_names)
-        hit = np.zeros(n_p, dtype=np.bool_)
-        dist = np.empty(n_p)
-        wpa = np.empty((n_p, 3))
-        wpb = np.empty((n_p, 3))
+        hit = np.empty(n_p, dtype=np.bool_)
+        res = np.empty((n_p, 7))
         while True:
-            n_out = kernels.scene_check(
-                *self.packed.arrays, Rw, tw, self.pairs, mode, not first_only,
-                data.lb, data.wit, data.R_prev, data.t_prev, data.have_prev,
-                hit, dist, wpa, wpb, data.out_p, data.out_a, data.out_b, data.stats,
-            )
-            data.have_prev = True
-            if n_out <= len(data.out_p):
-                return hit, dist, wpa, wpb, n_out
-            cap = int(2 * n_out)
-            data.out_p = np.empty(cap, dtype=np.int64)
-            data.out_a = np.empty(cap, dtype=np.int64)
-            data.out_b = np.empty(cap, dtype=np.int64)
+            n_out = kernels.check_packed(self._mf, self._mi, qq, world, use_chain, mode, not first_only,
+                                         data.sf, data.si, data.out, hit, res)
+            if n_out < 0:
+                self.robot.as_q(q)  # names what is wrong with it
+                raise InputError("joint vector rejected by the collision check")
+            if n_out <= data.out.shape[1]:
+                return hit, res[:, 0], res[:, 1:4], res[:, 4:7], n_out
+            data.out = np.empty((3, int(2 * n_out)), dtype=np.int64)
+
+    def _q_for_chain(self, q) -> np.ndarray | None:
+        """``q`` as the compiled chain takes it (checked there for length and finiteness), or
+        ``None`` when the links are placed in Python (no chain, or no links)."""
+        if not self.link_bodies or self._chain is None:
+            return None
+        if q is None:
+            raise InputError("a joint vector is needed to place the robot's links")
+        if type(q) is np.ndarray and q.dtype == np.float64 and q.ndim == 1 and q.flags.c_contiguous:
+            return q
+        return self.robot.as_q(q)
+
+    def _check_q(self, q, object_poses, mode: np.ndarray, data: SceneData, first_only: bool):
+        qq = self._q_for_chain(q)
+        if qq is not None:
+            return self._run(self._placed(object_poses), mode, data, first_only, qq)
+        return self._run(self._world_poses(q, object_poses, data), mode, data, first_only)
 
     def check(
         self,
@@ -559,17 +672,16 @@ class SceneModel:
         and the pairs are needed).
         """
         data = self._data(data)
-        world = self._world_poses(q, object_poses, data)
         moved = frozenset(object_poses) if object_poses else frozenset()
         mode = self._mode(data, distances, skip, moved)
-        return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
+        return self._report(data, *self._check_q(q, object_poses, mode, data, not triangles), mode)
 
     def pair_hits(self, q, *, data: SceneData | None = None) -> np.ndarray:
         """Which checked pairs interfere at ``q`` (bool per ``pair_names``): the yes/no answer
         without distances, triangle lists or a report, for sampling many configurations."""
         data = self._data(data)
         mode = self._mode(data, "none", (), frozenset())
-        return self._run(self._world_poses(q, None, data), mode, data, first_only=True)[0]
+        return self._check_q(q, None, mode, data, True)[0]
 
     def check_world(
         self,
@@ -595,43 +707,17 @@ class SceneModel:
                     world[i] = self.default_object_poses.get(n, np.eye(4))
             moved = frozenset(n for n in world_T_body if self.bodies[self._index[n]].kind == "object")
         else:
-            world = np.asarray(world_T_body, dtype=float)
+            world = np.array(world_T_body, dtype=float, order="C")
             if world.shape != (len(self.bodies), 4, 4):
                 raise InputError(f"expected ({len(self.bodies)}, 4, 4) poses, got {world.shape}")
             moved = frozenset(self.body_names[i] for i in self.object_bodies)
+        if not np.all(np.isfinite(world)):
+            raise InputError("body poses must be finite (a NaN or infinity was given)")
         mode = self._mode(data, distances, skip, moved)
         return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
 
     def _report(self, data: SceneData, hit, dist, wpa, wpb, n_out, mode) -> CollisionReport:
-        asked = mode == 2
-        pairs: list[InterferingPair] = []
-        tri_pairs: dict[tuple[str, str], np.ndarray] = {}
-        data_hits = np.flatnonzero(hit)
-        if len(data_hits):
-            order = data.out_p[:n_out]
-            for p in data_hits:
-                sel = order == p
-                tp = np.column_stack([data.out_a[:n_out][sel], data.out_b[:n_out][sel]])
-                a, b = self.pair_names[p]
-                tri_pairs[(a, b)] = tp
-                pairs.append(InterferingPair(a, b, np.unique(tp[:, 0]), np.unique(tp[:, 1])))
-        min_distance = None
-        nearest = None
-        if asked.any():
-            masked = np.where(asked, dist, np.inf)
-            p = int(np.argmin(masked))
-            min_distance = float(masked[p])
-            a, b = self.pair_names[p]
-            nearest = PairDistance(a, b, min_distance, wpa[p].copy(), wpb[p].copy())
-        return CollisionReport(
-            colliding=bool(hit.any()),
-            pairs=tuple(pairs),
-            triangle_pairs=tri_pairs,
-            min_distance=min_distance,
-            nearest=nearest,
-            _names=self.pair_names,
-            _dist=dist,
-            _pa=wpa,
-            _pb=wpb,
-            _asked=asked,
-        )
+        tris = None
+        if n_out:  # the buffers are the caller's and the next check overwrites them
+            tris = (data.out[0, :n_out].copy(), data.out[1, :n_out].copy(), data.out[2, :n_out].copy())
+        return CollisionReport(self.pair_names, hit, dist, wpa, wpb, mode, tris)
