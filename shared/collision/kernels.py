@@ -87,16 +87,13 @@ def _tri(tv, k):
 
 
 @njit(**JIT)
-def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
-    """Lower bound on the distance between node i (body a) and node j (body b, mapped by R, t).
+def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, stop, full_sat=True):
+    """Lower bound on the distance between node i (body a) and node j (body b, mapped by R, t),
+    for the distance descent (``_box_gap`` answers collision).
 
-    Positive: the boxes are apart by at least this (separating-axis gap, or the bounding-sphere
-    gap if larger). ``early``: return at the first separating axis (collision); else the largest
-    gap over all 15 axes and the spheres (distance bound), returning as soon as it reaches
-    ``stop`` (a bound that large already prunes the pair).
+    The largest gap over the spheres, the centre-to-centre direction and the 15 box axes,
+    returning as soon as it reaches ``stop`` (a bound that large already prunes the pair).
     """
-    if early:
-        stop = 0.0
     # centre of j in a's frame, minus centre of i
     d0 = R[0, 0] * nc[j, 0] + R[0, 1] * nc[j, 1] + R[0, 2] * nc[j, 2] + t[0] - nc[i, 0]
     d1 = R[1, 0] * nc[j, 0] + R[1, 1] * nc[j, 1] + R[1, 2] * nc[j, 2] + t[1] - nc[i, 1]
@@ -109,7 +106,7 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
     for k in range(3):
         for c in range(3):
             AC[k, c] = R[k, 0] * nax[j, 0, c] + R[k, 1] * nax[j, 1, c] + R[k, 2] * nax[j, 2, c]
-    if dn > 0.0 and not early:
+    if dn > 0.0:
         # the centre-to-centre direction as a 16th axis: much tighter than the spheres and the
         # 15 box axes when the boxes are far apart relative to their size (distance queries)
         u0, u1, u2 = d0 / dn, d1 / dn, d2 / dn
@@ -123,7 +120,7 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
             best = g
             if best > stop:
                 return best
-    if not early and not full_sat:
+    if not full_sat:
         return best
     # C = Ua^T M: rotation of box j's axes in box i's axes; T = Ua^T d
     for r in range(3):
@@ -185,13 +182,7 @@ def _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, early, stop, full_sat=True):
             c2 = (c + 2) % 3
             ra = har1 * AC[r2, c] + har2 * AC[r1, c]
             rb = nh[j, c1] * AC[r, c2] + nh[j, c2] * AC[r, c1]
-            g = abs(Tr2 * C[r1, c] - Tr1 * C[r2, c]) - ra - rb
-            if early:
-                # the sign decides; unnormalised (|a x b| <= 1) the gap stays a lower bound
-                if g > 0.0:
-                    return max(g, best)
-                continue
-            g /= math.sqrt(s2)
+            g = (abs(Tr2 * C[r1, c] - Tr1 * C[r2, c]) - ra - rb) / math.sqrt(s2)
             if g > best:
                 best = g
                 if best > stop:
@@ -313,6 +304,113 @@ def _grow(a, n):
 
 
 @njit(**JIT)
+def _box_gap(nc, nax, nh, nrad, i, j, R, t):
+    """Collision test of node boxes ``i`` (body a) and ``j`` (body b, mapped by ``R``, ``t``):
+    positive (a lower bound on their distance) when the bounding spheres or one of the 15
+    separating axes part them, else 0. Every intermediate stays in registers (``_node_gap``'s
+    matrices in memory cost it half its time), and cross axes left unnormalised:
+    the sign decides, and since ``|a x b| <= 1`` the gap is still a lower bound."""
+    d0 = R[0, 0] * nc[j, 0] + R[0, 1] * nc[j, 1] + R[0, 2] * nc[j, 2] + t[0] - nc[i, 0]
+    d1 = R[1, 0] * nc[j, 0] + R[1, 1] * nc[j, 1] + R[1, 2] * nc[j, 2] + t[1] - nc[i, 1]
+    d2 = R[2, 0] * nc[j, 0] + R[2, 1] * nc[j, 1] + R[2, 2] * nc[j, 2] + t[2] - nc[i, 2]
+    rr = nrad[i] + nrad[j]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    if dd > rr * rr:
+        return math.sqrt(dd) - rr
+    m00 = R[0, 0] * nax[j, 0, 0] + R[0, 1] * nax[j, 1, 0] + R[0, 2] * nax[j, 2, 0]
+    m01 = R[0, 0] * nax[j, 0, 1] + R[0, 1] * nax[j, 1, 1] + R[0, 2] * nax[j, 2, 1]
+    m02 = R[0, 0] * nax[j, 0, 2] + R[0, 1] * nax[j, 1, 2] + R[0, 2] * nax[j, 2, 2]
+    m10 = R[1, 0] * nax[j, 0, 0] + R[1, 1] * nax[j, 1, 0] + R[1, 2] * nax[j, 2, 0]
+    m11 = R[1, 0] * nax[j, 0, 1] + R[1, 1] * nax[j, 1, 1] + R[1, 2] * nax[j, 2, 1]
+    m12 = R[1, 0] * nax[j, 0, 2] + R[1, 1] * nax[j, 1, 2] + R[1, 2] * nax[j, 2, 2]
+    m20 = R[2, 0] * nax[j, 0, 0] + R[2, 1] * nax[j, 1, 0] + R[2, 2] * nax[j, 2, 0]
+    m21 = R[2, 0] * nax[j, 0, 1] + R[2, 1] * nax[j, 1, 1] + R[2, 2] * nax[j, 2, 1]
+    m22 = R[2, 0] * nax[j, 0, 2] + R[2, 1] * nax[j, 1, 2] + R[2, 2] * nax[j, 2, 2]
+    c00 = nax[i, 0, 0] * m00 + nax[i, 1, 0] * m10 + nax[i, 2, 0] * m20
+    c01 = nax[i, 0, 0] * m01 + nax[i, 1, 0] * m11 + nax[i, 2, 0] * m21
+    c02 = nax[i, 0, 0] * m02 + nax[i, 1, 0] * m12 + nax[i, 2, 0] * m22
+    c10 = nax[i, 0, 1] * m00 + nax[i, 1, 1] * m10 + nax[i, 2, 1] * m20
+    c11 = nax[i, 0, 1] * m01 + nax[i, 1, 1] * m11 + nax[i, 2, 1] * m21
+    c12 = nax[i, 0, 1] * m02 + nax[i, 1, 1] * m12 + nax[i, 2, 1] * m22
+    c20 = nax[i, 0, 2] * m00 + nax[i, 1, 2] * m10 + nax[i, 2, 2] * m20
+    c21 = nax[i, 0, 2] * m01 + nax[i, 1, 2] * m11 + nax[i, 2, 2] * m21
+    c22 = nax[i, 0, 2] * m02 + nax[i, 1, 2] * m12 + nax[i, 2, 2] * m22
+    a00 = abs(c00) + 1e-12
+    a01 = abs(c01) + 1e-12
+    a02 = abs(c02) + 1e-12
+    a10 = abs(c10) + 1e-12
+    a11 = abs(c11) + 1e-12
+    a12 = abs(c12) + 1e-12
+    a20 = abs(c20) + 1e-12
+    a21 = abs(c21) + 1e-12
+    a22 = abs(c22) + 1e-12
+    T0 = nax[i, 0, 0] * d0 + nax[i, 1, 0] * d1 + nax[i, 2, 0] * d2
+    T1 = nax[i, 0, 1] * d0 + nax[i, 1, 1] * d1 + nax[i, 2, 1] * d2
+    T2 = nax[i, 0, 2] * d0 + nax[i, 1, 2] * d1 + nax[i, 2, 2] * d2
+    ha0 = nh[i, 0]
+    ha1 = nh[i, 1]
+    ha2 = nh[i, 2]
+    hb0 = nh[j, 0]
+    hb1 = nh[j, 1]
+    hb2 = nh[j, 2]
+    g = abs(T0) - (ha0 + hb0 * a00 + hb1 * a01 + hb2 * a02)
+    if g > 0.0:
+        return g
+    g = abs(T1) - (ha1 + hb0 * a10 + hb1 * a11 + hb2 * a12)
+    if g > 0.0:
+        return g
+    g = abs(T2) - (ha2 + hb0 * a20 + hb1 * a21 + hb2 * a22)
+    if g > 0.0:
+        return g
+    g = abs(T0 * c00 + T1 * c10 + T2 * c20) - (ha0 * a00 + ha1 * a10 + ha2 * a20 + hb0)
+    if g > 0.0:
+        return g
+    g = abs(T0 * c01 + T1 * c11 + T2 * c21) - (ha0 * a01 + ha1 * a11 + ha2 * a21 + hb1)
+    if g > 0.0:
+        return g
+    g = abs(T0 * c02 + T1 * c12 + T2 * c22) - (ha0 * a02 + ha1 * a12 + ha2 * a22 + hb2)
+    if g > 0.0:
+        return g
+    if 1.0 - c00 * c00 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T2 * c10 - T1 * c20) - (ha1 * a20 + ha2 * a10 + hb1 * a02 + hb2 * a01)
+        if g > 0.0:
+            return g
+    if 1.0 - c01 * c01 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T2 * c11 - T1 * c21) - (ha1 * a21 + ha2 * a11 + hb2 * a00 + hb0 * a02)
+        if g > 0.0:
+            return g
+    if 1.0 - c02 * c02 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T2 * c12 - T1 * c22) - (ha1 * a22 + ha2 * a12 + hb0 * a01 + hb1 * a00)
+        if g > 0.0:
+            return g
+    if 1.0 - c10 * c10 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T0 * c20 - T2 * c00) - (ha2 * a00 + ha0 * a20 + hb1 * a12 + hb2 * a11)
+        if g > 0.0:
+            return g
+    if 1.0 - c11 * c11 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T0 * c21 - T2 * c01) - (ha2 * a01 + ha0 * a21 + hb2 * a10 + hb0 * a12)
+        if g > 0.0:
+            return g
+    if 1.0 - c12 * c12 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T0 * c22 - T2 * c02) - (ha2 * a02 + ha0 * a22 + hb0 * a11 + hb1 * a10)
+        if g > 0.0:
+            return g
+    if 1.0 - c20 * c20 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T1 * c00 - T0 * c10) - (ha0 * a10 + ha1 * a00 + hb1 * a22 + hb2 * a21)
+        if g > 0.0:
+            return g
+    if 1.0 - c21 * c21 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T1 * c01 - T0 * c11) - (ha0 * a11 + ha1 * a01 + hb2 * a20 + hb0 * a22)
+        if g > 0.0:
+            return g
+    if 1.0 - c22 * c22 >= 1e-12:  # else parallel: the face axes cover it
+        g = abs(T1 * c02 - T0 * c12) - (ha0 * a12 + ha1 * a02 + hb0 * a21 + hb1 * a20)
+        if g > 0.0:
+            return g
+    return 0.0
+
+
+@njit(**JIT)
 def _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, R, t, C, AC,
                   all_tris, out_p, out_a, out_b, n_out, stats, sa, sb):
     """OBB-tree descent and triangle tests of one pair: (hit, lower bound, n_out). ``sa``,
@@ -327,7 +425,7 @@ def _collide_pair(p, a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, tid, broot, 
         i = sa[top]
         j = sb[top]
         stats[ST_NODE_TESTS] += 1
-        g = _node_gap(nc, nax, nh, nrad, i, j, R, t, C, AC, True, 0.0)
+        g = _box_gap(nc, nax, nh, nrad, i, j, R, t)
         if g > 0.0:
             if g < lb:
                 lb = g
@@ -432,11 +530,11 @@ def _distance_pair(a, b, nc, nax, nh, nrad, nl, nr, nts, ntc, tv, broot, rs, R, 
         # the boxes' separating-axis bound first (cheap when it prunes), then the swept
         # rectangles' where the boxes could not prune the pair; not for two leaves, whose
         # triangle distance costs little more than the rectangles' and is exact
-        g1 = _node_gap(nc, nax, nh, nrad, i1, j1, R, t, C, AC, False, ub, FULL_SAT)
+        g1 = _node_gap(nc, nax, nh, nrad, i1, j1, R, t, C, AC, ub, FULL_SAT)
         if g1 < ub and (nl[i1] >= 0 or nl[j1] >= 0):
             stats[ST_DIST_RECT] += 1
             g1 = max(g1, _rect_gap(nc, rs, i1, j1, R, t, ub))
-        g2 = _node_gap(nc, nax, nh, nrad, i2, j2, R, t, C, AC, False, ub, FULL_SAT)
+        g2 = _node_gap(nc, nax, nh, nrad, i2, j2, R, t, C, AC, ub, FULL_SAT)
         if g2 < ub and (nl[i2] >= 0 or nl[j2] >= 0):
             stats[ST_DIST_RECT] += 1
             g2 = max(g2, _rect_gap(nc, rs, i2, j2, R, t, ub))

@@ -36,6 +36,7 @@ DistanceSelection = Literal["all", "none"] | Iterable[str | tuple[str, str]] | N
 
 _INITIAL_TRI_CAPACITY = 4096
 _NO_Q = np.zeros(0)
+_NOTHING_MOVED: frozenset[str] = frozenset()
 
 
 class InterferingPair(NamedTuple):
@@ -77,16 +78,14 @@ class CollisionReport:
     pays for nothing else.
     """
 
-    __slots__ = ("colliding", "_names", "_hit", "_dist", "_pa", "_pb", "_mode", "_tris", "_pairs", "_tri_pairs",
+    __slots__ = ("colliding", "_names", "_hit", "_res", "_mode", "_tris", "_pairs", "_tri_pairs",
                  "_distances", "_nearest")
 
-    def __init__(self, names, hit, dist, pa, pb, mode, tris) -> None:
+    def __init__(self, names, hit, res, mode, tris) -> None:
         self.colliding = tris is not None  # every interfering pair reports a triangle pair
         self._names = names
         self._hit = hit
-        self._dist = dist
-        self._pa = pa
-        self._pb = pb
+        self._res = res  # per pair: distance, point on a (3), point on b (3)
         self._mode = mode
         self._tris = tris  # (pair, tri a, tri b) rows, copied out of the caller's buffers
         self._pairs: tuple[InterferingPair, ...] | None = None
@@ -129,11 +128,11 @@ class CollisionReport:
             if not asked.any():
                 self._nearest = (None, None)
             else:
-                masked = np.where(asked, self._dist, np.inf)
+                masked = np.where(asked, self._res[:, 0], np.inf)
                 p = int(np.argmin(masked))
                 d = float(masked[p])
                 a, b = self._names[p]
-                self._nearest = (d, PairDistance(a, b, d, self._pa[p].copy(), self._pb[p].copy()))
+                self._nearest = (d, PairDistance(a, b, d, self._res[p, 1:4].copy(), self._res[p, 4:7].copy()))
         return self._nearest
 
     @property
@@ -152,7 +151,7 @@ class CollisionReport:
 
     def _pair_distance(self, p: int) -> PairDistance:
         a, b = self._names[p]
-        return PairDistance(a, b, float(self._dist[p]), self._pa[p].copy(), self._pb[p].copy())
+        return PairDistance(a, b, float(self._res[p, 0]), self._res[p, 1:4].copy(), self._res[p, 4:7].copy())
 
     def distance(self, a: str, b: str) -> PairDistance:
         """Distance between bodies ``a`` and ``b`` (either order; swaps the points to match)."""
@@ -619,7 +618,8 @@ class SceneModel:
     # -- the check -----------------------------------------------------------------------------------
     def _run(self, world: np.ndarray, mode: np.ndarray, data: SceneData, first_only: bool = False, q=None):
         """One compiled check: links placed from ``q`` when given (``world`` then holds the
-        objects' poses), else every body at ``world``. Returns (hit, dist, wpa, wpb, n_out)."""
+        objects' poses), else every body at ``world``. Returns (hit, res, n_out): ``res`` per pair
+        the distance and the witness points (``kernels.check_packed``)."""
         use_chain = q is not None
         qq = q if use_chain else _NO_Q
         n_p = len(self.pair_names)
@@ -632,7 +632,7 @@ class SceneModel:
                 self.robot.as_q(q)  # names what is wrong with it
                 raise InputError("joint vector rejected by the collision check")
             if n_out <= data.out.shape[1]:
-                return hit, res[:, 0], res[:, 1:4], res[:, 4:7], n_out
+                return hit, res, n_out
             data.out = np.empty((3, int(2 * n_out)), dtype=np.int64)
 
     def _q_for_chain(self, q) -> np.ndarray | None:
@@ -672,7 +672,7 @@ class SceneModel:
         and the pairs are needed).
         """
         data = self._data(data)
-        moved = frozenset(object_poses) if object_poses else frozenset()
+        moved = frozenset(object_poses) if object_poses else _NOTHING_MOVED
         mode = self._mode(data, distances, skip, moved)
         return self._report(data, *self._check_q(q, object_poses, mode, data, not triangles), mode)
 
@@ -680,7 +680,7 @@ class SceneModel:
         """Which checked pairs interfere at ``q`` (bool per ``pair_names``): the yes/no answer
         without distances, triangle lists or a report, for sampling many configurations."""
         data = self._data(data)
-        mode = self._mode(data, "none", (), frozenset())
+        mode = self._mode(data, "none", (), _NOTHING_MOVED)
         return self._check_q(q, None, mode, data, True)[0]
 
     def check_world(
@@ -716,8 +716,8 @@ class SceneModel:
         mode = self._mode(data, distances, skip, moved)
         return self._report(data, *self._run(world, mode, data, first_only=not triangles), mode)
 
-    def _report(self, data: SceneData, hit, dist, wpa, wpb, n_out, mode) -> CollisionReport:
+    def _report(self, data: SceneData, hit, res, n_out, mode) -> CollisionReport:
         tris = None
         if n_out:  # the buffers are the caller's and the next check overwrites them
             tris = (data.out[0, :n_out].copy(), data.out[1, :n_out].copy(), data.out[2, :n_out].copy())
-        return CollisionReport(self.pair_names, hit, dist, wpa, wpb, mode, tris)
+        return CollisionReport(self.pair_names, hit, res, mode, tris)
