@@ -174,7 +174,11 @@ def test_stop_during_a_long_move(ui: ConsolePage) -> None:
     _free_regime(ui)
     ui.tab("Submit")
     ui.click("Submit range")
-    ui.text_appears(r"DRAW TO[^\n]*: running", timeout=20)
+    # the robot's report first (the API), then the page: a loaded machine delays either, and
+    # the two waits say which one lagged
+    wait_for(lambda: any(i["status"] == "running" for i in ui.session()["sent"]["items"]), timeout=30,
+             what="the slow statement running on the robot")
+    ui.text_appears(r"DRAW TO[^\n]*: running", timeout=30)
     q_running = ui.session()["remote"]["q"]
     ui.click("STOP")
     ui.text_appears(r"robot stopped", timeout=10)
