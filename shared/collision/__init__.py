@@ -1,5 +1,7 @@
 """Collision core (seed 002): hybrid bounding-volume hierarchies, exact triangle tests,
-exact distances, for the robot at q among a cell's objects. See ``scene.SceneModel``.
+exact distances, for the robot at q among a cell's objects. See ``scene.SceneModel``; bodies
+made of closed convex shapes get their distances by GJK on certified pieces (``convex``,
+``gjk``), the others by the triangle descent (``kernels``).
 Mechanical interference zones in joint space (seed 001): ``interference``."""
 
 from shared.collision.interference import (
