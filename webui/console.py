@@ -98,6 +98,12 @@ class Console:
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
+        # The 3D scene is drawn only while a page is connected: a headless session (API
+        # clients, trials, the telerobot's telemetry with nobody looking) would otherwise pay
+        # forward kinematics and viser's message building on every jog and telemetry frame. A
+        # skipped drawing marks the scene stale; the next page to connect gets it redrawn.
+        self._stale = False
+        self.server.on_client_connect(self._on_page)
         self._mode = DisplayMode.TELEPROGRAMMING
         self._arm: ArmView | None = None
         self._remote: RemoteArmView | None = None
@@ -114,7 +120,8 @@ class Console:
     def _route(self, event) -> None:
         if isinstance(event, ArmChanged):
             self._arm = event.arm
-            self.drive.show_arm(event.arm)
+            if self._watched():  # the panel's numbers and the gizmo's place: for a page to see
+                self.drive.show_arm(event.arm)
             self._draw_arm()
         elif isinstance(event, CollisionChanged):
             self._collision = event.collision
@@ -189,7 +196,26 @@ class Console:
             self.status.show_notice_event(event)
 
     # -- drawing by display mode --------------------------------------------------------------
+    def _watched(self) -> bool:
+        """Is a page connected? If not, remember the scene needs drawing when one is."""
+        if self.server.get_clients():
+            return True
+        self._stale = True
+        return False
+
+    def _on_page(self, _client) -> None:
+        with self._lock:
+            if self._stale:
+                self._stale = False
+                if self._arm is not None:
+                    self.drive.show_arm(self._arm)
+                self._draw_arm()
+                self._draw_ghost()
+                self._draw_collision()
+
     def _draw_arm(self) -> None:
+        if not self._watched():
+            return
         mode = self._mode
         if self._preview.active and self._preview.q is not None:
             self.scene.show_arm(np.asarray(self._preview.q))
@@ -214,6 +240,8 @@ class Console:
         self.terrain_overlay.show(self._terrain_view, visible=own_arm)
 
     def _draw_ghost(self) -> None:
+        if not self._watched():
+            return
         remote = self._remote
         if remote is None or self._mode is DisplayMode.TELEPRESENCE:
             self.ghost.hide()
@@ -221,6 +249,8 @@ class Console:
         self.ghost.show(np.asarray(remote.q), remote.age_s, remote.state)
 
     def _draw_collision(self) -> None:
+        if not self._watched():
+            return
         if self._preview.active:
             pv = self._preview
             warning = ""
