@@ -36,6 +36,7 @@ from robot_sim.core import RobotCore
 from robot_sim.executor import Executor, ExecutorSettings
 from robot_sim.world import SimWorld, WorldSettings
 from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.startup_trace import mark
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
 from shared.wire.messages import Rejected, RejectReason, encode_message
 from shared.wire.telemetry import FRAME_RATE_HZ
@@ -75,6 +76,7 @@ class RobotService:
             heartbeat_s=settings.heartbeat_s,
             silence_limit_s=settings.silence_limit_s,
         )
+        mark("robot", "core ready")
         self._command: ServerConnection | None = None
         self._outbox: asyncio.Queue[BaseModel] | None = None
         self._telemetry: set[ServerConnection] = set()
@@ -93,6 +95,7 @@ class RobotService:
         ) as server:
             self._server = server
             self.port = next(iter(server.sockets)).getsockname()[1]
+            mark("robot", "listening")
             if on_ready:
                 on_ready(self.port)
             await asyncio.gather(self._servo(), self._publish())

@@ -30,6 +30,7 @@ from server.recording.recorder import SessionRecorder, record_session
 from server.settings import ConsoleSettings
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
+from shared.startup_trace import mark
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +81,7 @@ def create_app(
                 if client.handshake_s is not None:  # the round trip alone, not the wait for the robot
                     session.dispatch.note_round_trip(client.handshake_s)
                 log.info("robot at %s connected", settings.robot_url)
+                mark("console", f"robot connected (handshake {client.handshake_s or 0.0:.3f} s)")
 
             tasks.append(asyncio.create_task(connect(), name="robot-connect"))
         tasks.append(asyncio.create_task(session.run(), name="session-clock"))
@@ -93,6 +95,7 @@ def create_app(
             app.state.recordings = RecordingsSource(Path(settings.record_dir), lambda: _recording_now(recorder))
             app.state.trials = trials
             log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
+            mark("console", "page built")
             yield
         finally:
             trials.close()

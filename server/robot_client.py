@@ -45,6 +45,7 @@ from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 
 from server.delivery import Delivery
 from shared.errors import TeleprogError
+from shared.startup_trace import mark
 from shared.language.statements import Statement
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
 from shared.wire.messages import (
@@ -305,6 +306,7 @@ class RobotClient:
                     self.command_watch.reset()
                     hello_at = time.monotonic()
                     await ws.send(encode_message(self.sender.hello()))
+                    mark("console", "hello sent")
                     helpers = [
                         asyncio.create_task(self._heartbeats(ws)),
                         asyncio.create_task(self._close_if_silent(ws, self.command_watch, "command channel")),

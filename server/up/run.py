@@ -23,6 +23,7 @@ import uvicorn
 from server.app import create_app
 from server.settings import ConsoleSettings
 from server.viser_host import uvicorn_config_kwargs
+from shared.startup_trace import mark
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +72,7 @@ def run_sedimentation(settings: ConsoleSettings) -> int:
 
 
 def run_console(args: argparse.Namespace) -> int:
+    mark("console", "console imports done")
     settings = settings_from_args(args)
     if settings.sedimentation:
         return run_sedimentation(settings)
@@ -92,11 +94,13 @@ def run_console(args: argparse.Namespace) -> int:
                 cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
             )
             children = [robot, link]
+            mark("console", "children spawned")
             # the console serves once both listen, so its first connection reaches the robot: no
             # retries to log while they start (a child that fails says why, and nothing is served)
             print("teleprog up: waiting for the telerobot and the link to start ...", flush=True)
             for child in children:
                 child.wait_ready(settings.child_start_timeout_s)
+            mark("console", "children listening")
             print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
             settings = settings.model_copy(update={"robot_url": link_url})
             watcher.append(ChildWatch(
