@@ -6,3 +6,6 @@ from pathlib import Path
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 ASSETS_DIR = PROJECT_DIR / "assets"
+CELLS_DIR = ASSETS_DIR / "cells"
+DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
+"""The cell ``teleprog`` uses when none is named."""

@@ -32,7 +32,10 @@ def test_up_starts_robot_and_link_and_stops_them(tmp_path) -> None:
             time.sleep(0.1)  # the children start while the console does; the line comes when both listen
         assert m, log
         robot_port, link_port = int(m[1]), int(m[2])
-        assert httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()["status"] == "ok"
+        health = httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()
+        assert health["status"] == "ok"  # the robot listens before its core is built (--listen-first) ...
+        wait_for(lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()["core_ready"],
+                 timeout=60, what="the robot's core")  # ... and says when it is ready
         assert _listening(link_port)
         assert log.count("open http://") == 1
         link = running.api("GET", "/api/link").json()
