@@ -71,8 +71,10 @@ class RobotService:
         from robot_sim.executor import Executor
         from robot_sim.world import SimWorld
         from shared.cells.loader import load_cell
+        from shared.collision import model_cache
 
         settings = self.settings
+        model_cache.configure(settings.cache_dir)  # the collision model, built once per robot and cell
         cell = load_cell(settings.cell)
         world = SimWorld(cell, cell.robot, settings.world)
         return RobotCore(

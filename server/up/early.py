@@ -5,7 +5,9 @@ its web stack and builds its page.
 Order (``start_early``, called by the ``up`` command before it imports ``server.up.run``):
 
 1. the settings from the flags (a bad value is a one-line error before anything starts);
-2. the telerobot and the link spawned (``server.up.stack``), without waiting;
+2. the telerobot and the link spawned (``server.up.stack``), without waiting; then the cell
+   loaded (a broken one stops them again and is a one-line error: the robot, started with
+   ``--listen-first``, loads it only after it listens);
 3. a ``robot-io`` thread with an asyncio loop of its own: it waits until both children listen,
    then starts the ``RobotClient`` on that loop, which says hello at once. The client stays on
    this thread for the console's lifetime (the session submits to it with
@@ -26,7 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from server.settings import ConsoleSettings
-from server.up.stack import Child, spawn_robot_and_link
+from server.up.stack import Child, spawn_robot_and_link, stop_child
 from shared.errors import TeleprogError
 from shared.startup_trace import mark
 
@@ -104,6 +106,8 @@ class EarlyRobot:
 
     async def _main(self) -> None:
         self._stop = asyncio.Event()
+        from server.robot_client import RobotClient  # while the children start
+
         try:
             for child in self.children:
                 child.wait_ready(self.settings.child_start_timeout_s)  # blocks this thread only
@@ -113,7 +117,6 @@ class EarlyRobot:
         finally:
             self._children_ready.set()
         mark("console", "children listening")
-        from server.robot_client import RobotClient
 
         client = self.client = RobotClient(self.url, silence_limit_s=self.settings.silence_limit_s)
         self._client_made.set()
@@ -154,13 +157,19 @@ def start_early(args: argparse.Namespace) -> EarlyStart:
         return EarlyStart(settings)
     if settings.robot_url:
         return EarlyStart(settings, robot=EarlyRobot(settings.robot_url, settings, []).start())
-    from shared.cells.loader import load_cell  # imported with the settings already
-
-    load_cell(settings.cell)  # a broken cell fails here, before any child starts
     robot, link, link_url = spawn_robot_and_link(
-        cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
+        cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms,
+        cache_dir=settings.cache_dir,
     )
     mark("console", "children spawned")
+    try:
+        from shared.cells.loader import load_cell
+
+        load_cell(settings.cell)  # a broken cell fails here, while the children start (--listen-first)
+    except BaseException:
+        for child in (link, robot):
+            stop_child(child)
+        raise
     # the console serves once both listen, so its first connection reaches the robot: no
     # retries to log while they start (a child that fails says why, and nothing is served)
     print("teleprog up: waiting for the telerobot and the link to start ...", flush=True)

@@ -75,6 +75,9 @@ def run_console(args: argparse.Namespace, early: EarlyStart | None = None) -> in
     # handler that was in place before it; make that handler an orderly exit, so the children
     # are stopped (the finally below) instead of the process dying on the spot.
     signal.signal(signal.SIGTERM, exit_quietly)
+    from shared.collision import model_cache
+
+    model_cache.configure(settings.cache_dir)  # the console's collision model, built once per robot and cell
     children: list = list(early.children)
     watcher: list = []  # the ChildWatch, once both children listen
 
