@@ -35,7 +35,7 @@ from websockets.http11 import Response
 
 from robot_sim.settings import RobotSettings
 from shared.startup_trace import mark
-from shared.wire.messages import Rejected, RejectReason, encode_message
+from shared.wire.messages import Rejected, RejectReason, Welcome, encode_message
 
 if TYPE_CHECKING:
     from robot_sim.core import RobotCore
@@ -150,8 +150,10 @@ class RobotService:
         await self._command_connection(ws)
 
     async def _command_connection(self, ws: ServerConnection) -> None:
-        if self._core_ready is not None:
-            await self._core_ready.wait()  # what the console sent waits in the socket meanwhile
+        try:
+            early, held_s = await self._hold_until_core(ws)
+        except ConnectionClosed:
+            return
         core = self.core
         assert core is not None  # set before _core_ready
         if self._command is not None:
@@ -162,16 +164,25 @@ class RobotService:
         self._outbox = outbox
         core.connect()
         writer = asyncio.create_task(self._write(ws, outbox))
+
+        def take(message: str | bytes) -> None:
+            nonlocal held_s
+            try:
+                replies = core.on_unit(message) if isinstance(message, bytes) else core.on_text(message)
+            except Exception as exc:  # noqa: BLE001 - the core has its own boundary; this is the last one
+                log.exception("internal error while handling a message")
+                replies = [Rejected(reason=RejectReason.BAD_MESSAGE, final=False,
+                                    detail=f"internal error: {type(exc).__name__}")]
+            for r in replies:
+                if held_s and isinstance(r, Welcome):  # the console subtracts it from its round trip
+                    r, held_s = r.model_copy(update={"held_s": held_s}), 0.0
+                outbox.put_nowait(r)
+
         try:
+            for message in early:
+                take(message)
             async for message in ws:
-                try:
-                    replies = core.on_unit(message) if isinstance(message, bytes) else core.on_text(message)
-                except Exception as exc:  # noqa: BLE001 - the core has its own boundary; this is the last one
-                    log.exception("internal error while handling a message")
-                    replies = [Rejected(reason=RejectReason.BAD_MESSAGE, final=False,
-                                        detail=f"internal error: {type(exc).__name__}")]
-                for r in replies:
-                    outbox.put_nowait(r)
+                take(message)
         except ConnectionClosed:
             pass
         finally:
@@ -180,6 +191,29 @@ class RobotService:
                 self._outbox = None
                 core.disconnect()
             writer.cancel()
+
+    async def _hold_until_core(self, ws: ServerConnection) -> tuple[list[str | bytes], float]:
+        """Until the core is built (``listen_first``): what arrives, in order, and how long the
+        first message waited for the core (0 when it was ready)."""
+        ready = self._core_ready
+        if ready is None or ready.is_set():
+            return [], 0.0
+        early: list[str | bytes] = []
+        first_at: float | None = None
+        waiting = asyncio.ensure_future(ready.wait())
+        try:
+            while not waiting.done():
+                recv = asyncio.ensure_future(ws.recv())
+                await asyncio.wait({recv, waiting}, return_when=asyncio.FIRST_COMPLETED)
+                if recv.done():
+                    early.append(recv.result())  # raises ConnectionClosed when the console left
+                    first_at = first_at if first_at is not None else time.monotonic()
+                else:
+                    recv.cancel()  # websockets: a cancelled recv() loses nothing
+                    await asyncio.gather(recv, return_exceptions=True)
+        finally:
+            waiting.cancel()
+        return early, (0.0 if first_at is None else time.monotonic() - first_at)
 
     async def _write(self, ws: ServerConnection, outbox: asyncio.Queue[BaseModel]) -> None:
         try:

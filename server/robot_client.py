@@ -345,7 +345,8 @@ class RobotClient:
         """One message from the robot."""
         msg = decode_message(raw, allowed=ROBOT_TYPES)
         if isinstance(msg, Welcome):
-            self.handshake_s = time.monotonic() - hello_at
+            # the round trip alone: less the time the hello waited for a robot still starting
+            self.handshake_s = max(0.0, time.monotonic() - hello_at - msg.held_s)
             async with self._lock:
                 restart = self.sender.begin_session(msg)
                 if restart is not None:
