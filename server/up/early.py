@@ -60,7 +60,7 @@ class EarlyRobot:
         self._lock = threading.Lock()
         self._on_connected: list[Callable[[float], None]] = []
         self._handshake_s: float | None = None
-        self._stop: asyncio.Event | None = None
+        self._stop = asyncio.Event()  # bound to self.loop on first use there
         self._thread = threading.Thread(target=self._run, name="robot-io", daemon=True)
 
     def start(self) -> "EarlyRobot":
@@ -92,8 +92,10 @@ class EarlyRobot:
 
     def close(self, timeout: float = 5.0) -> None:
         """Close the client and end the thread (from any thread but robot-io)."""
-        if self._stop is not None and self.loop.is_running():
+        try:
             self.loop.call_soon_threadsafe(self._stop.set)
+        except RuntimeError:  # the loop is closed: the thread ended already (a child failed)
+            pass
         self._thread.join(timeout)
 
     # -- the robot-io thread -------------------------------------------------------------------
@@ -105,7 +107,6 @@ class EarlyRobot:
             self.loop.close()
 
     async def _main(self) -> None:
-        self._stop = asyncio.Event()
         from server.robot_client import RobotClient  # while the children start
 
         try:

@@ -107,3 +107,21 @@ def test_up_prints_one_url_and_no_retries_while_starting(tmp_path) -> None:
     assert not noise, "retry lines while starting:\n" + "\n".join(noise)
     # each retry would open a connection: the console's two channels at the link, the link's two at the robot
     assert err_text.count("connection open") <= 4, err_text
+
+
+def test_a_child_that_cannot_listen_ends_up_with_one_clear_line(tmp_path) -> None:
+    """The telerobot is started before the console's imports (``server.up.early``); when its port
+    is taken it exits, and ``teleprog up`` says so in one line and stops the link it started."""
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        robot_port, link_port = busy.getsockname()[1], free_port()
+        out = subprocess.run(
+            [sys.executable, "-m", "server.cli", "up", "--port", "0", "--no-record", "--robot-port", str(robot_port),
+             "--link-port", str(link_port)],
+            capture_output=True, text=True, timeout=120, cwd=PROJECT_DIR,
+        )
+    assert out.returncode == 1, out.stderr
+    assert "teleprog: error: the telerobot exited with code 1 before listening" in out.stderr
+    assert "Traceback" not in out.stderr
+    assert not _listening(link_port)
