@@ -70,25 +70,10 @@ from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopRe
 from shared.spatial import matrix_to_rpy
 from shared.terrain.cell import TERRAIN_OBJECT, has_terrain, load_cell_terrain
 from shared.wire.messages import MAX_TEXT, ControlMode, RobotSnapshot, RobotState, StatementState
+from robot_sim.settings import ExecutorSettings
 from robot_sim.world import PegState, SimWorld
 
 log = logging.getLogger(__name__)
-
-
-class ExecutorSettings(BaseModel):
-    """Servo rate and the safety thresholds of the executor."""
-
-    servo_rate: float = Field(100.0, gt=0.0, description="joint servo rate (Hz)")
-    contact_limit: float = Field(15.0, gt=0.0, description="force (N) that counts as unplanned contact in position mode")
-    max_force: float = Field(80.0, gt=0.0, description="force (N) that stops any motion, guarded or not")
-    touch_force: float = Field(3.0, gt=0.0, description="force (N) a task's guarded descent stops at")
-    extract_limit: float = Field(40.0, gt=0.0, description="pull (N) at which extraction gives up: the peg is stuck")
-    task_speed: float = Field(0.2, gt=0.0, le=1.0, description="speed of task motions (fraction of maximum)")
-    search_step: float = Field(0.0005, gt=0.0, description="spacing of the hole-search spiral (m)")
-    search_radius: float = Field(0.004, gt=0.0, description="how far from the first contact the search goes (m)")
-    interference_zones: bool = Field(True, description="route joint moves round the arm's interference zones (seed 001)")
-    collision_checks: bool = Field(True, description="stop on any contact of the arm with the cell (collision core)")
-    max_queue: int = Field(5000, ge=1, description="statements the buffer holds; a communication that would overflow it is refused")
 
 
 @dataclass(frozen=True)

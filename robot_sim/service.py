@@ -5,7 +5,7 @@
   task per connection so they leave in the order the core produced them.
 * ``/telemetry``: one fixed-size binary frame (``shared.wire.telemetry``) to every subscriber at
   ``telemetry_rate``.
-* ``GET /health``: a JSON line (robot state, buffer length, statements numbered, ``halted``:
+* ``GET /health``: a JSON line (``core_ready``, robot state, buffer length, statements numbered, ``halted``:
   why the robot holds by itself, or null).
 
 Heartbeats and the silence halt are the core's (``robot_sim.core``): ``heartbeat_s`` and
@@ -25,42 +25,27 @@ import logging
 import time
 from collections.abc import Callable
 
-from pydantic import BaseModel, Field
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from typing import TYPE_CHECKING
+
+from pydantic import BaseModel
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Response
 
-from robot_sim.core import RobotCore
-from robot_sim.executor import Executor, ExecutorSettings
-from robot_sim.world import SimWorld, WorldSettings
-from shared.cells.loader import DEFAULT_CELL, load_cell
-from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
-from shared.wire.messages import Rejected, RejectReason, encode_message
-from shared.wire.telemetry import FRAME_RATE_HZ
+from robot_sim.settings import RobotSettings
+from shared.startup_trace import mark
+from shared.wire.messages import Rejected, RejectReason, Welcome, encode_message
+
+if TYPE_CHECKING:
+    from robot_sim.core import RobotCore
 
 log = logging.getLogger("teleprog.robot")
 
 MAX_MESSAGE_BYTES = 4 << 20
 
 
-class RobotSettings(BaseSettings):
-    """The telerobot process: defaults that run, then ``TELEPROG_ROBOT_*`` variables, then flags."""
-
-    model_config = SettingsConfigDict(env_prefix="TELEPROG_ROBOT_", env_nested_delimiter="__")
-
-    host: str = "127.0.0.1"
-    port: int = 8766
-    cell: str = str(DEFAULT_CELL)
-    telemetry_rate: float = FRAME_RATE_HZ
-    heartbeat_s: float = Field(HEARTBEAT_INTERVAL_S, gt=0.0, le=60.0, description="interval of the robot's heartbeats (s)")
-    silence_limit_s: float = Field(
-        DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0,
-        description="silence from the console beyond the heartbeat interval at which the robot stops (s)",
-    )
-    world: WorldSettings = WorldSettings()
-    executor: ExecutorSettings = ExecutorSettings()
+__all__ = ["RobotService", "RobotSettings"]
 
 
 class RobotService:
@@ -68,21 +53,43 @@ class RobotService:
 
     def __init__(self, settings: RobotSettings) -> None:
         self.settings = settings
-        cell = load_cell(settings.cell)
-        world = SimWorld(cell, cell.robot, settings.world)
-        self.core = RobotCore(
-            Executor(cell, world, settings.executor),
-            heartbeat_s=settings.heartbeat_s,
-            silence_limit_s=settings.silence_limit_s,
-        )
+        self.core: RobotCore | None = None
+        """Built by ``run`` (``build_core``): before the sockets listen, or with ``listen_first``
+        right after (the collision model takes a moment, and a console's hello needs one link
+        delay to arrive anyway)."""
+        self._core_ready: asyncio.Event | None = None
         self._command: ServerConnection | None = None
         self._outbox: asyncio.Queue[BaseModel] | None = None
         self._telemetry: set[ServerConnection] = set()
         self._server = None
         self.port = settings.port
 
+    def build_core(self) -> RobotCore:
+        """The cell, the simulated world and the executor (with its collision model)."""
+        # imported here, not at the top: the sockets listen before the collision and motion code loads
+        from robot_sim.core import RobotCore
+        from robot_sim.executor import Executor
+        from robot_sim.world import SimWorld
+        from shared.cells.loader import load_cell
+        from shared.collision import model_cache
+
+        settings = self.settings
+        model_cache.configure(settings.cache_dir)  # the collision model, built once per robot and cell
+        cell = load_cell(settings.cell)
+        world = SimWorld(cell, cell.robot, settings.world)
+        return RobotCore(
+            Executor(cell, world, settings.executor),
+            heartbeat_s=settings.heartbeat_s,
+            silence_limit_s=settings.silence_limit_s,
+        )
+
     # -- lifecycle ------------------------------------------------------------------------------
     async def run(self, on_ready: Callable[[int], None] | None = None) -> None:
+        self._core_ready = asyncio.Event()
+        if not self.settings.listen_first:
+            self.core = self.build_core()
+            self._core_ready.set()
+            mark("robot", "core ready")
         async with serve(
             self._handle,
             self.settings.host,
@@ -93,28 +100,43 @@ class RobotService:
         ) as server:
             self._server = server
             self.port = next(iter(server.sockets)).getsockname()[1]
+            mark("robot", "listening")
             if on_ready:
                 on_ready(self.port)
+            if self.core is None:
+                # listening first: a console (through the link) connects at once and its hello
+                # waits in the socket until the core is there; /health says core_ready meanwhile
+                self.core = await asyncio.to_thread(self.build_core)
+                self._core_ready.set()
+                mark("robot", "core ready")
             await asyncio.gather(self._servo(), self._publish())
 
     def _process_request(self, connection: ServerConnection, request) -> Response | None:
         if request.path == "/health":
-            ex = self.core.executor
-            body = json.dumps(
-                {
-                    "status": "ok",
-                    "state": ex.state.name.lower(),
-                    "queued": len(ex.queue),
-                    "current": ex.current_number,
-                    "numbered": self.core.receiver.next_number - 1,
-                    "console": self.core.connected,
-                    "halted": ex.halted,
-                }
-            ).encode()
+            body = json.dumps(self.health()).encode()
             return Response(http.HTTPStatus.OK, "OK", Headers({"Content-Type": "application/json"}), body)
         if request.path not in ("/command", "/telemetry"):
             return connection.respond(http.HTTPStatus.NOT_FOUND, f"no channel at {request.path}\n")
         return None
+
+    def health(self) -> dict[str, object]:
+        """What ``GET /health`` answers; ``core_ready`` is false (state ``starting``) while the
+        core is being built after the sockets began listening."""
+        core = self.core
+        if core is None:
+            return {"status": "ok", "core_ready": False, "state": "starting", "queued": 0, "current": None,
+                    "numbered": 0, "console": False, "halted": None}
+        ex = core.executor
+        return {
+            "status": "ok",
+            "core_ready": True,
+            "state": ex.state.name.lower(),
+            "queued": len(ex.queue),
+            "current": ex.current_number,
+            "numbered": core.receiver.next_number - 1,
+            "console": core.connected,
+            "halted": ex.halted,
+        }
 
     # -- channels ---------------------------------------------------------------------------------
     async def _handle(self, ws: ServerConnection) -> None:
@@ -128,32 +150,70 @@ class RobotService:
         await self._command_connection(ws)
 
     async def _command_connection(self, ws: ServerConnection) -> None:
+        try:
+            early, held_s = await self._hold_until_core(ws)
+        except ConnectionClosed:
+            return
+        core = self.core
+        assert core is not None  # set before _core_ready
         if self._command is not None:
             log.info("a new console connection replaces the previous one")
             await self._command.close(1001, "replaced by a new console connection")
         self._command = ws
         outbox: asyncio.Queue[BaseModel] = asyncio.Queue()
         self._outbox = outbox
-        self.core.connect()
+        core.connect()
         writer = asyncio.create_task(self._write(ws, outbox))
+
+        def take(message: str | bytes) -> None:
+            nonlocal held_s
+            try:
+                replies = core.on_unit(message) if isinstance(message, bytes) else core.on_text(message)
+            except Exception as exc:  # noqa: BLE001 - the core has its own boundary; this is the last one
+                log.exception("internal error while handling a message")
+                replies = [Rejected(reason=RejectReason.BAD_MESSAGE, final=False,
+                                    detail=f"internal error: {type(exc).__name__}")]
+            for r in replies:
+                if held_s and isinstance(r, Welcome):  # the console subtracts it from its round trip
+                    r, held_s = r.model_copy(update={"held_s": held_s}), 0.0
+                outbox.put_nowait(r)
+
         try:
+            for message in early:
+                take(message)
             async for message in ws:
-                try:
-                    replies = self.core.on_unit(message) if isinstance(message, bytes) else self.core.on_text(message)
-                except Exception as exc:  # noqa: BLE001 - the core has its own boundary; this is the last one
-                    log.exception("internal error while handling a message")
-                    replies = [Rejected(reason=RejectReason.BAD_MESSAGE, final=False,
-                                        detail=f"internal error: {type(exc).__name__}")]
-                for r in replies:
-                    outbox.put_nowait(r)
+                take(message)
         except ConnectionClosed:
             pass
         finally:
             if self._command is ws:
                 self._command = None
                 self._outbox = None
-                self.core.disconnect()
+                core.disconnect()
             writer.cancel()
+
+    async def _hold_until_core(self, ws: ServerConnection) -> tuple[list[str | bytes], float]:
+        """Until the core is built (``listen_first``): what arrives, in order, and how long the
+        first message waited for the core (0 when it was ready)."""
+        ready = self._core_ready
+        if ready is None or ready.is_set():
+            return [], 0.0
+        early: list[str | bytes] = []
+        first_at: float | None = None
+        waiting = asyncio.ensure_future(ready.wait())
+        try:
+            while not waiting.done():
+                recv = asyncio.ensure_future(ws.recv())
+                await asyncio.wait({recv, waiting}, return_when=asyncio.FIRST_COMPLETED)
+                if recv.done():
+                    early.append(recv.result())  # raises ConnectionClosed when the console left
+                    first_at = first_at if first_at is not None else time.monotonic()
+                else:
+                    recv.cancel()  # websockets: a cancelled recv() loses nothing
+                    await asyncio.gather(recv, return_exceptions=True)
+        finally:
+            waiting.cancel()
+        return early, (0.0 if first_at is None else time.monotonic() - first_at)
 
     async def _write(self, ws: ServerConnection, outbox: asyncio.Queue[BaseModel]) -> None:
         try:
@@ -171,12 +231,14 @@ class RobotService:
     # -- clocks ------------------------------------------------------------------------------------
     async def _servo(self) -> None:
         """Tick the executor at its servo rate, catching up if the event loop was late."""
-        dt = self.core.executor.dt
+        core = self.core
+        assert core is not None  # the clocks start once the core is built
+        dt = core.executor.dt
         next_t = time.monotonic()
         while True:
             next_t += dt
             try:
-                out = self.core.tick()
+                out = core.tick()
             except Exception:  # noqa: BLE001 - the core has its own boundary; this is the last one
                 log.exception("internal error in the servo tick")
                 out = []
@@ -192,12 +254,14 @@ class RobotService:
                 await asyncio.sleep(0)
 
     async def _publish(self) -> None:
+        core = self.core
+        assert core is not None  # the clocks start once the core is built
         period = 1.0 / self.settings.telemetry_rate
         next_t = time.monotonic()
         while True:
             next_t += period
             try:
-                frame = self.core.telemetry()
+                frame = core.telemetry()
             except Exception:  # noqa: BLE001 - a frame that cannot be made is skipped, logged
                 log.exception("cannot make a telemetry frame")
                 await asyncio.sleep(period)

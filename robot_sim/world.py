@@ -28,22 +28,9 @@ from shared.cells.cell import Cell
 from shared.robots.model import Robot
 from shared.spatial import invert, matrix_to_rpy
 from shared.wire.messages import ObjectPose
+from robot_sim.settings import WorldSettings  # noqa: F401 - its home before robot_sim.settings
 
 log = logging.getLogger(__name__)
-
-
-class WorldSettings(BaseModel):
-    """How the real world departs from the model, and how it feels. Defaults run the peg task."""
-
-    seed: int = 0
-    object_offset: float = Field(0.0005, ge=0.0, description="max xy offset of movable objects and holes (m)")
-    force_noise: float = Field(0.05, ge=0.0, description="std of force-sensor noise (N)")
-    contact_stiffness: float = Field(2.0e5, gt=0.0, description="N per m of commanded penetration")
-    chamfer: float = Field(0.0015, gt=0.0, description="lateral capture radius of a hole mouth (m)")
-    stick_probability: float = Field(0.0, ge=0.0, le=1.0, description="chance a peg sticks when pulled")
-    stick_force: float = Field(60.0, gt=0.0, description="pull (N) a stuck peg resists before it frees")
-    grasp_tolerance: float = Field(0.004, gt=0.0, description="gripper-to-grasp-point distance that still grasps (m)")
-    hole_depth: float = Field(0.030, gt=0.0, description="depth of every hole feature (m)")
 
 
 @dataclass(frozen=True)

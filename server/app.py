@@ -28,8 +28,10 @@ from server.console import Session
 from server.http_errors import add_error_handler
 from server.recording.recorder import SessionRecorder, record_session
 from server.settings import ConsoleSettings
+from server.up.early import EarlyRobot
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
+from shared.startup_trace import mark
 
 log = logging.getLogger(__name__)
 
@@ -52,10 +54,16 @@ def _build_page(viser_server, session: Session, trials: TrialBatches) -> None:
 
 
 def create_app(
-    settings: ConsoleSettings | None = None, *, build_page: bool = True, children: Callable[[], dict[str, str]] | None = None
+    settings: ConsoleSettings | None = None,
+    *,
+    build_page: bool = True,
+    children: Callable[[], dict[str, str]] | None = None,
+    robot: EarlyRobot | None = None,
 ) -> FastAPI:
     """The console app; ``build_page=False`` serves the API without the 3D page's panels;
-    ``children()``: how the processes ``teleprog up`` watches are (shown in the link view)."""
+    ``children()``: how the processes ``teleprog up`` watches are (shown in the link view);
+    ``robot``: a robot client ``teleprog up`` started on its own thread before the app existed
+    (``server.up.early``; the caller closes it), used instead of connecting to ``robot_url`` here."""
     settings = settings or ConsoleSettings()
     cell = load_cell(settings.cell)  # fail before serving anything if the cell is broken
     holder: dict[str, ConsoleState] = {}
@@ -69,7 +77,10 @@ def create_app(
         loop = asyncio.get_running_loop()
         tasks: list[asyncio.Task] = []
         client = None
-        if settings.robot_url and not settings.no_robot:
+        if robot is not None:
+            session.attach_robot(robot.wait_client(), robot.loop)
+            robot.when_connected(session.dispatch.note_round_trip)  # the round trip alone
+        elif settings.robot_url and not settings.no_robot:
             from server.robot_client import RobotClient
 
             client = RobotClient(settings.robot_url, silence_limit_s=settings.silence_limit_s)
@@ -80,6 +91,7 @@ def create_app(
                 if client.handshake_s is not None:  # the round trip alone, not the wait for the robot
                     session.dispatch.note_round_trip(client.handshake_s)
                 log.info("robot at %s connected", settings.robot_url)
+                mark("console", f"robot connected (handshake {client.handshake_s or 0.0:.3f} s)")
 
             tasks.append(asyncio.create_task(connect(), name="robot-connect"))
         tasks.append(asyncio.create_task(session.run(), name="session-clock"))
@@ -93,6 +105,7 @@ def create_app(
             app.state.recordings = RecordingsSource(Path(settings.record_dir), lambda: _recording_now(recorder))
             app.state.trials = trials
             log.info("cell %s loaded; 3D scene on private port %d", cell.name, viser_server.get_port())
+            mark("console", "page built")
             yield
         finally:
             trials.close()

@@ -45,6 +45,7 @@ from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 
 from server.delivery import Delivery
 from shared.errors import TeleprogError
+from shared.startup_trace import mark
 from shared.language.statements import Statement
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
 from shared.wire.messages import (
@@ -305,6 +306,7 @@ class RobotClient:
                     self.command_watch.reset()
                     hello_at = time.monotonic()
                     await ws.send(encode_message(self.sender.hello()))
+                    mark("console", "hello sent")
                     helpers = [
                         asyncio.create_task(self._heartbeats(ws)),
                         asyncio.create_task(self._close_if_silent(ws, self.command_watch, "command channel")),
@@ -343,7 +345,8 @@ class RobotClient:
         """One message from the robot."""
         msg = decode_message(raw, allowed=ROBOT_TYPES)
         if isinstance(msg, Welcome):
-            self.handshake_s = time.monotonic() - hello_at
+            # the round trip alone: less the time the hello waited for a robot still starting
+            self.handshake_s = max(0.0, time.monotonic() - hello_at - msg.held_s)
             async with self._lock:
                 restart = self.sender.begin_session(msg)
                 if restart is not None:

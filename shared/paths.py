@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 ASSETS_DIR = PROJECT_DIR / "assets"
+CELLS_DIR = ASSETS_DIR / "cells"
+DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
+"""The cell ``teleprog`` uses when none is named."""
+USER_CACHE_DIR = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "teleprog"
+"""The default folder of the on-disk caches (the settings' ``cache_dir``)."""

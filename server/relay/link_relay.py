@@ -54,6 +54,7 @@ from websockets.asyncio.client import connect
 from websockets.asyncio.server import serve
 
 from shared.errors import InputError
+from shared.startup_trace import mark
 from shared.link.core import Delivery, Direction, LinkCore, LinkFault, LinkParams
 
 log = logging.getLogger("teleprog.link")
@@ -350,6 +351,7 @@ async def serve_link(settings: LinkSettings, on_ready: Callable[[int], None] | N
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
+    mark("link", "listening")
     if on_ready is not None:
         on_ready(relay.port)
     try:

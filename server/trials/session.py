@@ -18,7 +18,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-import httpx
 
 from robot_sim.world import WorldSettings
 from shared.errors import TeleprogError
@@ -44,6 +43,8 @@ class ConsoleApi:
     def __init__(self, url: str) -> None:
         self.url = url
         self.headers = {"X-Teleprog-Client": CLIENT_LABEL}
+        import httpx  # here: the console imports this module at start and seldom runs a trial
+
         self._http = httpx.Client(base_url=url, timeout=10.0)
 
     def call(self, method: str, path: str, body: object | None = None) -> dict:
@@ -111,6 +112,8 @@ class TrialSession:
         return self
 
     def _wait_up(self) -> None:
+        import httpx
+
         deadline = time.monotonic() + self.start_timeout
         while True:
             if self.proc is not None and self.proc.poll() is not None:

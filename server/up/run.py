@@ -23,6 +23,8 @@ import uvicorn
 from server.app import create_app
 from server.settings import ConsoleSettings
 from server.viser_host import uvicorn_config_kwargs
+from server.up.early import EarlyStart, start_early
+from shared.startup_trace import mark
 
 log = logging.getLogger(__name__)
 
@@ -45,16 +47,6 @@ def exit_quietly(signum: int, frame: object) -> None:
     raise SystemExit(0)
 
 
-def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
-    get = lambda name: getattr(args, name, None)  # noqa: E731 - flags absent from older callers
-    return ConsoleSettings().with_overrides(
-        port=get("port"), host=get("host"), cell=get("cell"), delay_ms=get("delay_ms"), robot_url=get("robot_url"),
-        no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
-        sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
-        record=False if get("no_record") else None, record_dir=get("record"),
-    )
-
-
 def run_sedimentation(settings: ConsoleSettings) -> int:
     """``teleprog up --sedimentation``: the sedimentation view alone (no cell, no children)."""
     from server.sedimentation.app import create_sedimentation_app
@@ -70,35 +62,31 @@ def run_sedimentation(settings: ConsoleSettings) -> int:
     return 0 if server.started else 1
 
 
-def run_console(args: argparse.Namespace) -> int:
-    settings = settings_from_args(args)
+def run_console(args: argparse.Namespace, early: EarlyStart | None = None) -> int:
+    """Serve the console; ``early``: what ``start_early`` already began before this module's
+    imports (children spawned, robot client connecting); started here when not given."""
+    mark("console", "console imports done")
+    if early is None:
+        early = start_early(args)
+    settings = early.settings
     if settings.sedimentation:
         return run_sedimentation(settings)
     # uvicorn shuts down gracefully on SIGINT/SIGTERM and then re-raises the signal with the
     # handler that was in place before it; make that handler an orderly exit, so the children
     # are stopped (the finally below) instead of the process dying on the spot.
     signal.signal(signal.SIGTERM, exit_quietly)
-    from shared.cells.loader import load_cell
+    from shared.collision import model_cache
 
-    load_cell(settings.cell)  # a broken cell fails here, before any child starts
-    children: list = []
+    model_cache.configure(settings.cache_dir)  # the console's collision model, built once per robot and cell
+    children: list = list(early.children)
     watcher: list = []  # the ChildWatch, once both children listen
 
     try:
-        if not settings.no_robot and not settings.robot_url:
-            from server.up.stack import ChildWatch, spawn_robot_and_link
+        if early.robot is not None and children:
+            from server.up.stack import ChildWatch
 
-            robot, link, link_url = spawn_robot_and_link(
-                cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms
-            )
-            children = [robot, link]
-            # the console serves once both listen, so its first connection reaches the robot: no
-            # retries to log while they start (a child that fails says why, and nothing is served)
-            print("teleprog up: waiting for the telerobot and the link to start ...", flush=True)
-            for child in children:
-                child.wait_ready(settings.child_start_timeout_s)
+            robot, link = early.robot.wait_children()
             print(f"teleprog up: telerobot {robot.url}, link {link.url} ({settings.delay_ms:g} ms each way)", flush=True)
-            settings = settings.model_copy(update={"robot_url": link_url})
             watcher.append(ChildWatch(
                 children, restart=settings.restart_children, start_timeout=settings.child_start_timeout_s
             ).start())
@@ -106,7 +94,7 @@ def run_console(args: argparse.Namespace) -> int:
             print(f"teleprog up: using the robot at {settings.robot_url}", flush=True)
         else:
             print("teleprog up: console only (no robot)", flush=True)
-        app = create_app(settings, children=watcher[0].status if watcher else None)
+        app = create_app(settings, children=watcher[0].status if watcher else None, robot=early.robot)
         config = uvicorn.Config(
             app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
         )
@@ -116,6 +104,8 @@ def run_console(args: argparse.Namespace) -> int:
     finally:
         from server.up.stack import stop_child
 
+        if early.robot is not None:
+            early.robot.close()
         if watcher:
             children = watcher[0].stop()  # no restart while the children are stopped on purpose
         for child in reversed(children):

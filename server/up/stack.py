@@ -119,13 +119,19 @@ def stop_child(child: Child, timeout: float = 10.0) -> None:
             proc.wait()
 
 
-def spawn_robot_and_link(*, cell: Path, robot_port: int, link_port: int, delay_ms: float) -> tuple[Child, Child, str]:
+def spawn_robot_and_link(
+    *, cell: Path, robot_port: int, link_port: int, delay_ms: float, cache_dir: Path | None = None
+) -> tuple[Child, Child, str]:
     """Start the telerobot and the link relaying to it at once, without waiting (the link reaches
-    the robot only when a console joins, and ``teleprog up`` serves the console once both listen);
-    returns both and the link's URL for the console. Ports 0 are chosen free here."""
+    the robot only when a console joins, and ``teleprog up`` connects once both listen);
+    returns both and the link's URL for the console. Ports 0 are chosen free here. The caller
+    has loaded ``cell``: the robot listens before it loads it (``--listen-first``). ``cache_dir``:
+    the robot's collision-model cache (None: none)."""
     robot_port = robot_port or free_port()
     link_port = link_port or free_port()
-    robot = spawn_child("telerobot", ["robot", "--port", str(robot_port), "--cell", str(cell)])
+    robot = spawn_child("telerobot", [
+        "robot", "--port", str(robot_port), "--cell", str(cell), "--listen-first", "--cache-dir", str(cache_dir or "none"),
+    ])
     link = spawn_child(
         "link", ["link", "--port", str(link_port), "--robot", f"ws://127.0.0.1:{robot_port}", "--delay-ms", repr(float(delay_ms))]
     )

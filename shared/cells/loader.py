@@ -17,14 +17,12 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from shared.cells.cell import Cell, CellObject, Feature, ZoneDistances
 from shared.errors import FileFormatError, TeleprogError
-from shared.paths import ASSETS_DIR
+from shared.paths import ASSETS_DIR, CELLS_DIR, DEFAULT_CELL  # noqa: F401 - DEFAULT_CELL is also read from here
 from shared.robots.file_numbers import RGB, Angle, Pixels, Rpy, Scale3, Size, Size3, Vec3, file_error, units_context
 from shared.robots.loader import load_robot, shape_from_spec
 from shared.spatial import pose_to_transform
 from shared.vision.camera import Camera
 
-CELLS_DIR = ASSETS_DIR / "cells"
-DEFAULT_CELL = CELLS_DIR / "peg_in_hole.toml"
 
 _LENGTH_SCALE = {"m": 1.0, "mm": 1e-3}
 _ANGLE_SCALE = {"rad": 1.0, "deg": np.pi / 180.0}

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import sys
 import tomllib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from typing import Literal
 
 import numpy as np
 
+from shared.collision import model_cache
 from shared.errors import FileFormatError, InputError
 
 log = logging.getLogger(__name__)
@@ -744,14 +746,56 @@ def file_zones(robot) -> list[Zone]:
     return zones_from_toml(source)
 
 
+def robot_content_parts(robot) -> tuple[object, ...] | None:
+    """What a robot's sampled models depend on, for ``model_cache`` keys: the description (full
+    precision) and the content of every file in the robot file's folder (meshes included). None
+    for a robot not read from a file (nothing to key it by: no caching)."""
+    source = Path(getattr(robot.description, "source", "") or "")
+    if not source.is_file():
+        return None
+    with np.printoptions(threshold=sys.maxsize, floatmode="unique"):
+        parts: list[object] = [repr(robot.description), robot.lower, robot.upper]
+    root = source.parent
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        parts += [path.relative_to(root).as_posix(), path.read_bytes()]
+    return tuple(parts)
+
+
+_GRID_FIELDS = ("colliding", "q_ref", "axis0", "axis1", "axis2")
+
+
+def _sampled_grid(robot, joints: tuple[int, ...], q_ref, step_deg: float, model) -> SelfCollisionGrid:
+    """``sample_self_collision`` with ``model()`` (built only when needed), through the on-disk
+    ``model_cache`` when one is configured: the grid is the same either way."""
+    parts = robot_content_parts(robot) if model_cache.folder() is not None else None
+    if parts is None:
+        return sample_self_collision(robot, joints, q_ref, step_deg, model())
+
+    def build() -> dict[str, np.ndarray]:
+        g = sample_self_collision(robot, joints, q_ref, step_deg, model())
+        axes = {f"axis{k}": a for k, a in enumerate(g.axes)}
+        return {"colliding": g.colliding, "q_ref": g.q_ref, **{f"axis{k}": axes.get(f"axis{k}", np.zeros(0)) for k in range(3)}}
+
+    ref = None if q_ref is None else np.asarray(q_ref, dtype=float)
+    arrays = model_cache.cached_arrays("selfgrid", (*parts, joints, float(step_deg), ref), _GRID_FIELDS, build)
+    axes = tuple(np.array(arrays[f"axis{k}"]) for k in range(len(joints)))
+    return SelfCollisionGrid(joints, axes, np.array(arrays["colliding"], dtype=bool), np.array(arrays["q_ref"]), ())
+
+
 @functools.lru_cache(maxsize=8)
 def _generated(robot, pairs: tuple[tuple[int, int], ...], step_deg: float, q_ref: tuple[float, ...] | None) -> tuple[Zone, ...]:
     zones: list[Zone] = list(file_zones(robot))
     if not pairs:
         return tuple(zones)
-    model, _ = self_collision_model(robot)
+    built: list = []
+
+    def model():
+        if not built:
+            built.append(self_collision_model(robot)[0])
+        return built[0]
+
     for pair in pairs:
-        zones += wrap_polygons(sample_self_collision(robot, _parse_joints(robot, pair, 2), q_ref, step_deg, model))
+        zones += wrap_polygons(_sampled_grid(robot, _parse_joints(robot, pair, 2), q_ref, step_deg, model))
     return tuple(zones)
 
 

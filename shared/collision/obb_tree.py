@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shared.collision import model_cache
+
 #: absolute padding (m) added to every box and sphere so rounding never shaves off a vertex
 PAD = 1e-12
 
@@ -173,12 +175,22 @@ def _hull_vertices(vertices: np.ndarray) -> np.ndarray:
         return np.ascontiguousarray(np.unique(vertices, axis=0))
 
 
-def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1, compiled: bool = True) -> OBBTree:
+def build_obb_tree(
+    vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1, compiled: bool = True, cache: bool = True
+) -> OBBTree:
     """Build the hierarchy of one body (vertices (V, 3) and faces (F, 3) in the body frame).
     ``compiled``: the numba build (``obb_build``); False runs this module's Python reference of
-    the same algorithm (kept to check the compiled one against)."""
+    the same algorithm (kept to check the compiled one against). The compiled build is read from
+    ``model_cache`` when a caller configured one and ``cache`` (identical arrays)."""
     vertices = np.asarray(vertices, dtype=float)
     faces = np.asarray(faces, dtype=np.int64)
+    if cache and compiled and len(faces) and model_cache.folder() is not None:
+        # the same build, read from the on-disk cache when these triangles were built before
+        arrays = model_cache.cached_arrays(
+            "obb", (vertices, faces, int(leaf_size), PAD), _TREE_FIELDS,
+            lambda: _tree_arrays(build_obb_tree(vertices, faces, leaf_size, compiled, cache=False)),
+        )
+        return _tree_from_arrays(arrays)
     tris_all = np.ascontiguousarray(vertices[faces])
     areas_all = triangle_areas(tris_all)
     if compiled and len(faces):
@@ -220,6 +232,19 @@ def build_obb_tree(vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 1, 
     return _tree(vertices, tris_all, np.array(centers), np.array(axes_l), np.array(halves), np.array(radii),
                  np.array(lefts, dtype=np.int64), np.array(rights, dtype=np.int64), np.array(starts, dtype=np.int64),
                  np.array(counts, dtype=np.int64), np.concatenate(order))
+
+
+_TREE_FIELDS = tuple(f for f in OBBTree.__dataclass_fields__)
+
+
+def _tree_arrays(tree: OBBTree) -> dict[str, np.ndarray]:
+    return {name: np.asarray(getattr(tree, name)) for name in _TREE_FIELDS}
+
+
+def _tree_from_arrays(arrays: dict[str, np.ndarray]) -> OBBTree:
+    fields = {name: np.ascontiguousarray(arrays[name]) for name in _TREE_FIELDS}
+    fields["sphere_radius"] = float(arrays["sphere_radius"])
+    return OBBTree(**fields)
 
 
 def _tree(vertices, tris_all, center, axes, half, radius, left, right, starts, counts, tri_ids) -> OBBTree:

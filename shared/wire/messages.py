@@ -176,6 +176,10 @@ class Welcome(_Model):
         DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0, description="silence beyond the expected arrival at which the robot stops"
     )
     halted: str | None = Field(None, max_length=MAX_TEXT, description="why the robot holds by itself now, if it does")
+    held_s: float = Field(
+        0.0, ge=0.0, le=3600.0,
+        description="how long the hello waited at the robot for its core to be built: not part of the round trip",
+    )
 
 
 class Heartbeat(_Model):

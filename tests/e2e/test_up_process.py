@@ -32,7 +32,10 @@ def test_up_starts_robot_and_link_and_stops_them(tmp_path) -> None:
             time.sleep(0.1)  # the children start while the console does; the line comes when both listen
         assert m, log
         robot_port, link_port = int(m[1]), int(m[2])
-        assert httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()["status"] == "ok"
+        health = httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()
+        assert health["status"] == "ok"  # the robot listens before its core is built (--listen-first) ...
+        wait_for(lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()["core_ready"],
+                 timeout=60, what="the robot's core")  # ... and says when it is ready
         assert _listening(link_port)
         assert log.count("open http://") == 1
         link = running.api("GET", "/api/link").json()
@@ -104,3 +107,21 @@ def test_up_prints_one_url_and_no_retries_while_starting(tmp_path) -> None:
     assert not noise, "retry lines while starting:\n" + "\n".join(noise)
     # each retry would open a connection: the console's two channels at the link, the link's two at the robot
     assert err_text.count("connection open") <= 4, err_text
+
+
+def test_a_child_that_cannot_listen_ends_up_with_one_clear_line(tmp_path) -> None:
+    """The telerobot is started before the console's imports (``server.up.early``); when its port
+    is taken it exits, and ``teleprog up`` says so in one line and stops the link it started."""
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        robot_port, link_port = busy.getsockname()[1], free_port()
+        out = subprocess.run(
+            [sys.executable, "-m", "server.cli", "up", "--port", "0", "--no-record", "--robot-port", str(robot_port),
+             "--link-port", str(link_port)],
+            capture_output=True, text=True, timeout=120, cwd=PROJECT_DIR,
+        )
+    assert out.returncode == 1, out.stderr
+    assert "teleprog: error: the telerobot exited with code 1 before listening" in out.stderr
+    assert "Traceback" not in out.stderr
+    assert not _listening(link_port)

@@ -10,7 +10,6 @@ def _cmd_robot(args: argparse.Namespace) -> int:
 
     from robot_sim.service import RobotService, RobotSettings
     from server.cli import print_json
-    from shared.cells.loader import load_cell
 
     settings = RobotSettings()
     overrides: dict[str, object] = {
@@ -18,6 +17,7 @@ def _cmd_robot(args: argparse.Namespace) -> int:
         for k, v in (
             ("host", args.host), ("port", args.port), ("cell", args.cell),
             ("heartbeat_s", args.heartbeat_s), ("silence_limit_s", args.silence_limit_s),
+            ("listen_first", True if args.listen_first else None), ("cache_dir", args.cache_dir),
         )
         if v is not None
     }
@@ -38,7 +38,10 @@ def _cmd_robot(args: argparse.Namespace) -> int:
         "executor": settings.executor.model_copy(update=executor),
     })
     settings = RobotSettings.model_validate(settings.model_dump())  # validate the overrides too
-    load_cell(settings.cell)  # a broken cell is a one-line error before anything listens
+    if not settings.listen_first:
+        from shared.cells.loader import load_cell
+
+        load_cell(settings.cell)  # a broken cell is a one-line error before anything listens
 
     def ready(port: int) -> None:
         url = f"ws://{settings.host}:{port}"
@@ -74,4 +77,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="silence from the console beyond the heartbeat at which the robot stops, in s (default 1)")
     p.add_argument("--max-queue", type=int, default=None, help="statements the robot's buffer holds (default 5000)")
     p.add_argument("--json", action="store_true", help="print the listening address as JSON")
+    p.add_argument(
+        "--cache-dir", default=None,
+        help="folder of the collision-model cache (default ~/.cache/teleprog; 'none': build every time)",
+    )
+    p.add_argument(
+        "--listen-first", action="store_true",
+        help="listen at once, then load the cell and build the core (/health: core_ready); teleprog up starts it so",
+    )
     p.set_defaults(handler=_cmd_robot)

@@ -9,9 +9,14 @@ import argparse
 
 
 def _cmd_up(args: argparse.Namespace) -> int:
+    # the telerobot and the link start, and the robot connection with them, before the
+    # console's heavy imports (about 2 s): the hello crosses the delay meanwhile
+    from server.up.early import start_early
+
+    early = start_early(args)
     from server.up.run import run_console
 
-    return run_console(args)
+    return run_console(args, early)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
