@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shared.collision import model_cache
+
 #: a vertex may lie this far (relative to the piece's extent) outside a face plane and the piece
 #: still count as convex: far below the tessellation's rounding effects on distances (1e-13 m
 #: on a 0.1 m shape)
@@ -154,3 +156,30 @@ def convex_pieces(vertices: np.ndarray, faces: np.ndarray, piece_faces: Sequence
         center=np.array(centers),
         radius=np.array(radii),
     )
+
+
+_FIELDS = ("vertices", "start", "count", "adj_start", "adj", "center", "radius")
+
+
+def cached_convex_pieces(
+    vertices: np.ndarray, faces: np.ndarray, piece_faces: Sequence[tuple[int, int]]
+) -> ConvexPieces | None:
+    """``convex_pieces``, read from the collision-model cache when one is configured (the hulls
+    cost tens of milliseconds a tessellated capsule at every process start)."""
+    if model_cache.folder() is None:
+        return convex_pieces(vertices, faces, piece_faces)
+    ranges = np.array(piece_faces, dtype=np.int64).reshape(-1, 2)
+
+    def build() -> dict[str, np.ndarray]:
+        pieces = convex_pieces(vertices, faces, piece_faces)
+        if pieces is None:
+            return {"certified": np.array(False), **{name: np.zeros(0) for name in _FIELDS}}
+        return {"certified": np.array(True), **{name: getattr(pieces, name) for name in _FIELDS}}
+
+    arrays = model_cache.cached_arrays(
+        "convex", (np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64), ranges, CONVEX_TOL),
+        ("certified", *_FIELDS), build,
+    )
+    if not bool(arrays["certified"]):
+        return None
+    return ConvexPieces(**{name: np.ascontiguousarray(arrays[name]) for name in _FIELDS})

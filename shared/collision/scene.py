@@ -27,7 +27,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from shared.collision import kernels
-from shared.collision.convex import ConvexPieces, convex_pieces
+from shared.collision.convex import ConvexPieces, cached_convex_pieces
 from shared.collision.mesh_model import BodyMesh, body_mesh
 from shared.collision.obb_tree import OBBTree, build_obb_tree, swept_rectangles
 from shared.errors import InputError, UnknownNameError
@@ -182,7 +182,7 @@ class Body:
 
 def _body(name: str, kind: Literal["link", "object"], index: int, mesh: BodyMesh, leaf_size: int) -> Body:
     tree = build_obb_tree(mesh.vertices, mesh.faces, leaf_size)
-    return Body(name, kind, index, mesh, tree, convex_pieces(mesh.vertices, mesh.faces, mesh.shape_faces))
+    return Body(name, kind, index, mesh, tree, cached_convex_pieces(mesh.vertices, mesh.faces, mesh.shape_faces))
 
 
 def _pack_pieces(bodies: list[Body]) -> tuple[np.ndarray, ...]:

@@ -151,3 +151,24 @@ def test_an_unwritable_folder_only_costs_the_build(tmp_path) -> None:
     finally:
         model_cache.configure(None)
     _same_tree(build_obb_tree(v, f), tree)
+
+
+def test_convex_pieces_are_identical_built_stored_and_read(cache_dir) -> None:
+    from shared.collision.convex import cached_convex_pieces, convex_pieces
+
+    v, f = _box()
+    model_cache.configure(None)
+    plain = convex_pieces(v, f, [(0, len(f))])
+    model_cache.configure(cache_dir)
+    stored = cached_convex_pieces(v, f, [(0, len(f))])
+    read = cached_convex_pieces(v, f, [(0, len(f))])
+    assert len(_files(cache_dir, "convex")) == 1
+    for got in (stored, read):
+        for name in ("vertices", "start", "count", "adj_start", "adj", "center", "radius"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(plain, name))
+    # a refused mesh is remembered as refused
+    dented = v.copy()
+    dented[0] = 0.8 * v.mean(axis=0) + 0.2 * v[0]  # a corner pushed towards the centre: concave
+    assert cached_convex_pieces(dented, f, [(0, len(f))]) is None
+    assert cached_convex_pieces(dented, f, [(0, len(f))]) is None
+    assert len(_files(cache_dir, "convex")) == 2
