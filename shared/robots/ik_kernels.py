@@ -1,0 +1,356 @@
+"""Nearest-solution inverse kinematics for jogging and path following: one compiled call.
+
+``solve_ik`` (``shared.robots.ik``) returns every solution, mapped into the joint ranges,
+deduplicated and sorted nearest first; most callers (jogging, the planner's next step, the
+program checks) then read only the first. ``solve_ik_nearest`` returns that first solution (or
+None where ``solve_ik`` returns none) without building the list: for the PUMA closed form the
+whole of it (tool and base frames, the up-to-8 analytic solutions, the range mapping with its
+2 pi variants and limit clamp, the duplicate rule and the nearest pick) runs in one numba kernel
+that follows ``puma_ik_all`` and ``solve_ik`` step for step, so the answer is the same solution
+to rounding. Robots without that closed form (the rover, DLS robots) go through ``solve_ik``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from shared.errors import InputError
+from shared.robots.ik import DUPLICATE_TOLERANCE, solve_ik
+from shared.robots.ik_puma import REACH_TOLERANCE, SHOULDER_SINGULAR, WRIST_SINGULAR, check_puma_structure
+from shared.robots.model import LIMIT_TOLERANCE, Robot
+from shared.spatial import invert
+
+JIT = dict(cache=True, nogil=True, fastmath=False)
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class PumaKernelParams:
+    """What the kernel needs of a PUMA robot file, extracted once per description."""
+
+    lengths: np.ndarray  # (6,) d1, h = d2 + d3, a2, a3, d4, d6 (m)
+    signs: np.ndarray  # (6,) joint sign (+1 / -1) as floats
+    offsets: np.ndarray  # (6,) DH angle offsets (rad)
+    chain_T_base: np.ndarray  # (4, 4) inverse of base_T_chain
+    tool_T_flange: np.ndarray  # (4, 4) inverse of flange_T_tool
+
+
+_PARAMS: dict[int, tuple[object, PumaKernelParams]] = {}
+
+
+def _puma_params(robot: Robot) -> PumaKernelParams:
+    """The kernel parameters of ``robot``'s description (checked and cached on first use)."""
+    desc = robot.description
+    hit = _PARAMS.get(id(desc))
+    if hit is not None and hit[0] is desc:
+        return hit[1]
+    check_puma_structure(desc.joints)
+    j1, j2, j3, j4, _j5, j6 = desc.joints
+    params = PumaKernelParams(
+        lengths=np.array([j1.d, j2.d + j3.d, j3.a, j4.a, j4.d, j6.d], dtype=float),
+        signs=np.array([float(j.sign) for j in desc.joints]),
+        offsets=np.array([float(j.offset) for j in desc.joints]),
+        chain_T_base=np.ascontiguousarray(invert(desc.base_T_chain), dtype=float),
+        tool_T_flange=np.ascontiguousarray(invert(desc.flange_T_tool), dtype=float),
+    )
+    _PARAMS[id(desc)] = (desc, params)
+    return params
+
+
+@njit(**JIT)
+def _wrap_py(angle: float) -> float:
+    """``ik_puma._wrap``: angle into (-pi, pi]."""
+    out = math.pi - (math.pi - angle) % _TWO_PI
+    return out + _TWO_PI if out <= -math.pi else out
+
+
+@njit(**JIT)
+def _wrap_np(angle: float) -> float:
+    """``ik._wrap`` on one value (the same fold, as numpy computes it)."""
+    out = np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
+    return out + 2.0 * np.pi if out <= -np.pi else out
+
+
+@njit(**JIT)
+def _matmul4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            s = 0.0
+            for k in range(4):
+                s += a[i, k] * b[k, j]
+            out[i, j] = s
+    return out
+
+
+@njit(**JIT)
+def _puma_raw(
+    target: np.ndarray, lengths: np.ndarray, signs: np.ndarray, offsets: np.ndarray, q4_singular: float
+) -> tuple[np.ndarray, int]:
+    """``puma_ik_all``: the raw solutions (rows of an (8, 6) array, the first ``n`` filled), in
+    the same order, wrapped into (-pi, pi]."""
+    raw = np.empty((8, 6))
+    n = 0
+    r00, r01, r02, px = target[0, 0], target[0, 1], target[0, 2], target[0, 3]
+    r10, r11, r12, py = target[1, 0], target[1, 1], target[1, 2], target[1, 3]
+    r20, r21, r22, pz = target[2, 0], target[2, 1], target[2, 2], target[2, 3]
+    d1, h, a2, a3, d4, d6 = lengths[0], lengths[1], lengths[2], lengths[3], lengths[4], lengths[5]
+    wx, wy, wz = px - d6 * r02, py - d6 * r12, pz - d6 * r22
+    theta1_free = offsets[0]
+    theta4_free = signs[3] * q4_singular + offsets[3]
+    c4f, s4f = math.cos(theta4_free), math.sin(theta4_free)
+
+    # shoulders (theta1, r): up to 2
+    sh_t = np.empty(2)
+    sh_r = np.empty(2)
+    n_sh = 0
+    rho2 = wx * wx + wy * wy
+    disc = rho2 - h * h
+    if math.sqrt(rho2) < SHOULDER_SINGULAR and abs(h) < SHOULDER_SINGULAR:
+        sh_t[0] = theta1_free
+        sh_r[0] = 0.0
+        n_sh = 1
+    else:
+        if disc < 0.0:
+            if disc < -REACH_TOLERANCE * max(rho2, h * h, 1e-300):
+                return raw, 0
+            disc = 0.0
+        root = math.sqrt(disc)
+        base = math.atan2(wy, wx)
+        if root > 0.0:
+            sh_t[0] = base - math.atan2(h, root)
+            sh_r[0] = root
+            sh_t[1] = base - math.atan2(h, -root)
+            sh_r[1] = -root
+            n_sh = 2
+        else:
+            sh_t[0] = base - math.atan2(h, 0.0)
+            sh_r[0] = 0.0
+            n_sh = 1
+
+    zp = d1 - wz
+    rho3 = math.hypot(a3, d4)
+    phi = math.atan2(d4, a3)
+    elbows = np.empty(2)
+    m0 = np.empty(3)
+    m1 = np.empty(3)
+    m2 = np.empty(3)
+    for i_sh in range(n_sh):
+        theta1 = sh_t[i_sh]
+        r = sh_r[i_sh]
+        k = (r * r + zp * zp - a2 * a2 - a3 * a3 - d4 * d4) / (2.0 * a2)
+        x = k / rho3
+        if abs(x) > 1.0 + REACH_TOLERANCE:
+            continue
+        if abs(x) >= 1.0:
+            elbows[0] = phi if x > 0 else phi + math.pi
+            n_el = 1
+        else:
+            spread = math.acos(x)
+            elbows[0] = phi + spread
+            elbows[1] = phi - spread
+            n_el = 2
+        # A = Rx(90) Rz(-theta1) R: rows (row0 of Rz^T R, -row2 of R, row1 of Rz^T R)
+        c1, s1 = math.cos(theta1), math.sin(theta1)
+        a00, a01, a02 = c1 * r00 + s1 * r10, c1 * r01 + s1 * r11, c1 * r02 + s1 * r12
+        a10, a11, a12 = -r20, -r21, -r22
+        m2[0], m2[1], m2[2] = -s1 * r00 + c1 * r10, -s1 * r01 + c1 * r11, -s1 * r02 + c1 * r12
+        for i_el in range(n_el):
+            theta3 = elbows[i_el]
+            c3, s3 = math.cos(theta3), math.sin(theta3)
+            big_x = a2 + a3 * c3 + d4 * s3
+            big_y = a3 * s3 - d4 * c3
+            theta2 = math.atan2(zp, r) - math.atan2(big_y, big_x)
+            # rows m0, m1 of 3_R_6 = Rz(-theta23) A
+            theta23 = theta2 + theta3
+            c23, s23 = math.cos(theta23), math.sin(theta23)
+            m0[0] = c23 * a00 + s23 * a10
+            m0[1] = c23 * a01 + s23 * a11
+            m0[2] = c23 * a02 + s23 * a12
+            m1[0] = -s23 * a00 + c23 * a10
+            m1[1] = -s23 * a01 + c23 * a11
+            m1[2] = -s23 * a02 + c23 * a12
+            s5_abs = math.hypot(m0[2], m2[2])
+            if s5_abs < WRIST_SINGULAR:
+                n_wr = 1
+                wc0, ws0, wt0 = c4f, s4f, theta4_free
+                wc1, ws1, wt1 = 0.0, 0.0, 0.0
+            else:
+                n_wr = 2
+                wt0 = math.atan2(m2[2], m0[2])
+                wc0, ws0 = m0[2] / s5_abs, m2[2] / s5_abs
+                wc1, ws1, wt1 = -wc0, -ws0, wt0 + math.pi
+            for i_wr in range(n_wr):
+                if i_wr == 0:
+                    c4, s4, theta4 = wc0, ws0, wt0
+                else:
+                    c4, s4, theta4 = wc1, ws1, wt1
+                theta5 = math.atan2(c4 * m0[2] + s4 * m2[2], -m1[2])
+                theta6 = math.atan2(-s4 * m0[0] + c4 * m2[0], -s4 * m0[1] + c4 * m2[1])
+                raw[n, 0] = _wrap_py(signs[0] * (theta1 - offsets[0]))
+                raw[n, 1] = _wrap_py(signs[1] * (theta2 - offsets[1]))
+                raw[n, 2] = _wrap_py(signs[2] * (theta3 - offsets[2]))
+                raw[n, 3] = _wrap_py(signs[3] * (theta4 - offsets[3]))
+                raw[n, 4] = _wrap_py(signs[4] * (theta5 - offsets[4]))
+                raw[n, 5] = _wrap_py(signs[5] * (theta6 - offsets[5]))
+                n += 1
+    return raw, n
+
+
+@njit(**JIT)
+def _nearest_of(
+    raw: np.ndarray, n_raw: int, q_ref: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+    tolerance: float, respect_limits: bool, out: np.ndarray,
+) -> bool:
+    """``solve_ik``'s candidate list (range variants in ``itertools.product`` order, or the
+    wrapped rows), its duplicate rule (a candidate within ``DUPLICATE_TOLERANCE`` of any earlier
+    one is dropped) and its first entry after the stable sort by squared distance to ``q_ref``,
+    written to ``out``. False where the list is empty."""
+    dof = raw.shape[1]
+    wrapped = np.empty((n_raw, dof))
+    for r in range(n_raw):
+        for i in range(dof):
+            wrapped[r, i] = _wrap_np(raw[r, i])
+    if respect_limits:
+        k_lo = np.empty((n_raw, dof), dtype=np.int64)
+        k_hi = np.empty((n_raw, dof), dtype=np.int64)
+        total = 0
+        for r in range(n_raw):
+            count = 1
+            for i in range(dof):
+                k_lo[r, i] = int(np.ceil((lower[i] - tolerance - wrapped[r, i]) / _TWO_PI))
+                k_hi[r, i] = int(np.floor((upper[i] + tolerance - wrapped[r, i]) / _TWO_PI))
+                span = k_hi[r, i] - k_lo[r, i] + 1
+                count = count * span if span > 0 else 0
+            total += count
+        cand = np.empty((total, dof))
+        n = 0
+        digit = np.empty(dof, dtype=np.int64)
+        for r in range(n_raw):
+            feasible = True
+            for i in range(dof):
+                if k_hi[r, i] < k_lo[r, i]:
+                    feasible = False
+            if not feasible:
+                continue
+            for i in range(dof):
+                digit[i] = k_lo[r, i]
+            while True:
+                for i in range(dof):
+                    v = wrapped[r, i] + _TWO_PI * digit[i]
+                    cand[n, i] = min(max(v, lower[i]), upper[i])
+                n += 1
+                # odometer: the last joint turns fastest (itertools.product order)
+                i = dof - 1
+                while i >= 0:
+                    if digit[i] < k_hi[r, i]:
+                        digit[i] += 1
+                        break
+                    digit[i] = k_lo[r, i]
+                    i -= 1
+                if i < 0:
+                    break
+    else:
+        cand = wrapped
+        n = n_raw
+    best = -1
+    best_d = np.inf
+    for j in range(n):
+        dropped = False
+        for i in range(j):
+            m = 0.0
+            for c in range(dof):
+                m = max(m, abs(cand[j, c] - cand[i, c]))
+            if m <= DUPLICATE_TOLERANCE:
+                dropped = True
+                break
+        if dropped:
+            continue
+        d = 0.0
+        for c in range(dof):
+            e = cand[j, c] - q_ref[c]
+            d += e * e
+        if d < best_d:
+            best_d = d
+            best = j
+    if best < 0:
+        return False
+    for c in range(dof):
+        out[c] = cand[best, c]
+    return True
+
+
+@njit(**JIT)
+def puma_nearest_kernel(
+    base_T_tool: np.ndarray, chain_T_base: np.ndarray, tool_T_flange: np.ndarray,
+    lengths: np.ndarray, signs: np.ndarray, offsets: np.ndarray,
+    q_ref: np.ndarray, lower: np.ndarray, upper: np.ndarray, tolerance: float, respect_limits: bool,
+    out: np.ndarray,
+) -> int:
+    """The PUMA solution nearest ``q_ref`` into ``out``: 1 found, 0 none, -1 a non-finite pose,
+    -2 a non-finite ``q_ref``."""
+    for i in range(q_ref.shape[0]):
+        if not np.isfinite(q_ref[i]):
+            return -2
+    for i in range(4):
+        for j in range(4):
+            if not np.isfinite(base_T_tool[i, j]):
+                return -1
+    target = _matmul4(_matmul4(chain_T_base, base_T_tool), tool_T_flange)
+    raw, n_raw = _puma_raw(target, lengths, signs, offsets, q_ref[3])
+    if n_raw == 0:
+        return 0
+    return 1 if _nearest_of(raw, n_raw, q_ref, lower, upper, tolerance, respect_limits, out) else 0
+
+
+def solve_ik_nearest(
+    robot: Robot,
+    base_T_tool: np.ndarray | None = None,
+    q_seed: np.ndarray | None = None,
+    *,
+    position: np.ndarray | None = None,
+    respect_limits: bool = True,
+    limit_tolerance: float | None = None,
+) -> np.ndarray | None:
+    """The IK solution nearest ``q_seed`` (zeros if None): what ``solve_ik(...)[0]`` returns with
+    the same arguments (``q_near=q_seed``), or None where that list is empty. ``base_T_tool`` is
+    the tool pose (4, 4) in the base frame; ``position`` (3,) serves position-only robots."""
+    if robot.description.ik != "puma":
+        sols = solve_ik(
+            robot, base_T_tool, position=position, q_near=q_seed,
+            respect_limits=respect_limits, limit_tolerance=limit_tolerance,
+        )
+        return sols[0] if sols else None
+    if base_T_tool is None:
+        if position is None:
+            raise InputError("inverse kinematics needs a target pose or position")
+        raise InputError("the PUMA needs a full tool pose (position and orientation)")
+    params = _puma_params(robot)
+    if q_seed is None:
+        q_ref = np.zeros(robot.dof)
+    elif isinstance(q_seed, np.ndarray) and q_seed.dtype == np.float64 and q_seed.shape == (robot.dof,):
+        q_ref = q_seed  # finiteness checked in the kernel
+    else:
+        q_ref = robot.as_q(q_seed)
+    if limit_tolerance is None:
+        limit_tolerance = robot.description.ik_limit_tolerance
+    if not limit_tolerance >= 0.0:
+        raise InputError(f"the IK limit tolerance must be zero or more; got {limit_tolerance}")
+    target = base_T_tool if isinstance(base_T_tool, np.ndarray) and base_T_tool.dtype == np.float64 else np.asarray(base_T_tool, dtype=float)
+    if target.shape != (4, 4):
+        raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
+    out = np.empty(robot.dof)
+    found = puma_nearest_kernel(
+        target, params.chain_T_base, params.tool_T_flange, params.lengths, params.signs, params.offsets,
+        q_ref, robot.lower, robot.upper, max(float(limit_tolerance), LIMIT_TOLERANCE), bool(respect_limits), out,
+    )
+    if found == -2:
+        robot.as_q(q_ref)  # raises the usual message for a NaN or infinite joint vector
+    if found < 0:
+        raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
+    return out if found else None
