@@ -168,7 +168,7 @@ def test_exactly_singular_wrist_takes_the_seed_q4() -> None:
         got = assert_same_as_solve_ik(robot, target, seed)
         assert got is not None
         np.testing.assert_allclose(robot.fk(got), target, atol=1e-9)
-        assert got[3] == q4 and got[5] == pytest.approx(-q4, abs=1e-9)  # q4 kept, q6 takes the rest
+        assert got[3] == pytest.approx(q4, abs=1e-12) and got[5] == pytest.approx(-q4, abs=1e-9)  # q4 kept, q6 takes the rest
 
 
 def test_the_default_seed_is_zero() -> None:
