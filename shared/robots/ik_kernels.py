@@ -38,6 +38,7 @@ class PumaKernelParams:
     offsets: np.ndarray  # (6,) DH angle offsets (rad)
     chain_T_base: np.ndarray  # (4, 4) inverse of base_T_chain
     tool_T_flange: np.ndarray  # (4, 4) inverse of flange_T_tool
+    packed: np.ndarray  # (50,) all of the above in one array, for a cheap kernel call
 
 
 _PARAMS: dict[int, tuple[object, PumaKernelParams]] = {}
@@ -51,12 +52,14 @@ def _puma_params(robot: Robot) -> PumaKernelParams:
         return hit[1]
     check_puma_structure(desc.joints)
     j1, j2, j3, j4, _j5, j6 = desc.joints
+    lengths = np.array([j1.d, j2.d + j3.d, j3.a, j4.a, j4.d, j6.d], dtype=float)
+    signs = np.array([float(j.sign) for j in desc.joints])
+    offsets = np.array([float(j.offset) for j in desc.joints])
+    chain_T_base = np.ascontiguousarray(invert(desc.base_T_chain), dtype=float)
+    tool_T_flange = np.ascontiguousarray(invert(desc.flange_T_tool), dtype=float)
     params = PumaKernelParams(
-        lengths=np.array([j1.d, j2.d + j3.d, j3.a, j4.a, j4.d, j6.d], dtype=float),
-        signs=np.array([float(j.sign) for j in desc.joints]),
-        offsets=np.array([float(j.offset) for j in desc.joints]),
-        chain_T_base=np.ascontiguousarray(invert(desc.base_T_chain), dtype=float),
-        tool_T_flange=np.ascontiguousarray(invert(desc.flange_T_tool), dtype=float),
+        lengths=lengths, signs=signs, offsets=offsets, chain_T_base=chain_T_base, tool_T_flange=tool_T_flange,
+        packed=np.concatenate([lengths, signs, offsets, chain_T_base.ravel(), tool_T_flange.ravel()]),
     )
     _PARAMS[id(desc)] = (desc, params)
     return params
@@ -286,6 +289,19 @@ def _nearest_of(
 
 
 @njit(**JIT)
+def puma_nearest_packed(
+    base_T_tool: np.ndarray, packed: np.ndarray, q_ref: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+    tolerance: float, respect_limits: bool, out: np.ndarray,
+) -> int:
+    """``puma_nearest_kernel`` with the robot's parameters in one array (``PumaKernelParams.packed``):
+    fewer arguments for the dispatcher to type on every call."""
+    return puma_nearest_kernel(
+        base_T_tool, packed[18:34].reshape(4, 4), packed[34:50].reshape(4, 4),
+        packed[0:6], packed[6:12], packed[12:18], q_ref, lower, upper, tolerance, respect_limits, out,
+    )
+
+
+@njit(**JIT)
 def puma_nearest_kernel(
     base_T_tool: np.ndarray, chain_T_base: np.ndarray, tool_T_flange: np.ndarray,
     lengths: np.ndarray, signs: np.ndarray, offsets: np.ndarray,
@@ -345,9 +361,8 @@ def solve_ik_nearest(
     if target.shape != (4, 4):
         raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
     out = np.empty(robot.dof)
-    found = puma_nearest_kernel(
-        target, params.chain_T_base, params.tool_T_flange, params.lengths, params.signs, params.offsets,
-        q_ref, robot.lower, robot.upper, max(float(limit_tolerance), LIMIT_TOLERANCE), bool(respect_limits), out,
+    found = puma_nearest_packed(
+        target, params.packed, q_ref, robot.lower, robot.upper, max(float(limit_tolerance), LIMIT_TOLERANCE), bool(respect_limits), out,
     )
     if found == -2:
         robot.as_q(q_ref)  # raises the usual message for a NaN or infinite joint vector
