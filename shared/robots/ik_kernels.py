@@ -109,14 +109,11 @@ def _puma_raw(
     c4f, s4f = math.cos(theta4_free), math.sin(theta4_free)
 
     # shoulders (theta1, r): up to 2
-    sh_t = np.empty(2)
-    sh_r = np.empty(2)
-    n_sh = 0
+    sh_t0 = sh_r0 = sh_t1 = sh_r1 = 0.0
     rho2 = wx * wx + wy * wy
     disc = rho2 - h * h
     if math.sqrt(rho2) < SHOULDER_SINGULAR and abs(h) < SHOULDER_SINGULAR:
-        sh_t[0] = theta1_free
-        sh_r[0] = 0.0
+        sh_t0 = theta1_free
         n_sh = 1
     else:
         if disc < 0.0:
@@ -126,45 +123,39 @@ def _puma_raw(
         root = math.sqrt(disc)
         base = math.atan2(wy, wx)
         if root > 0.0:
-            sh_t[0] = base - math.atan2(h, root)
-            sh_r[0] = root
-            sh_t[1] = base - math.atan2(h, -root)
-            sh_r[1] = -root
+            sh_t0, sh_r0 = base - math.atan2(h, root), root
+            sh_t1, sh_r1 = base - math.atan2(h, -root), -root
             n_sh = 2
         else:
-            sh_t[0] = base - math.atan2(h, 0.0)
-            sh_r[0] = 0.0
+            sh_t0 = base - math.atan2(h, 0.0)
             n_sh = 1
 
     zp = d1 - wz
     rho3 = math.hypot(a3, d4)
     phi = math.atan2(d4, a3)
-    elbows = np.empty(2)
-    m0 = np.empty(3)
-    m1 = np.empty(3)
-    m2 = np.empty(3)
     for i_sh in range(n_sh):
-        theta1 = sh_t[i_sh]
-        r = sh_r[i_sh]
+        theta1 = sh_t0 if i_sh == 0 else sh_t1
+        r = sh_r0 if i_sh == 0 else sh_r1
         k = (r * r + zp * zp - a2 * a2 - a3 * a3 - d4 * d4) / (2.0 * a2)
         x = k / rho3
         if abs(x) > 1.0 + REACH_TOLERANCE:
             continue
         if abs(x) >= 1.0:
-            elbows[0] = phi if x > 0 else phi + math.pi
+            el0 = phi if x > 0 else phi + math.pi
+            el1 = el0
             n_el = 1
         else:
             spread = math.acos(x)
-            elbows[0] = phi + spread
-            elbows[1] = phi - spread
+            el0 = phi + spread
+            el1 = phi - spread
             n_el = 2
         # A = Rx(90) Rz(-theta1) R: rows (row0 of Rz^T R, -row2 of R, row1 of Rz^T R)
         c1, s1 = math.cos(theta1), math.sin(theta1)
         a00, a01, a02 = c1 * r00 + s1 * r10, c1 * r01 + s1 * r11, c1 * r02 + s1 * r12
         a10, a11, a12 = -r20, -r21, -r22
-        m2[0], m2[1], m2[2] = -s1 * r00 + c1 * r10, -s1 * r01 + c1 * r11, -s1 * r02 + c1 * r12
+        m20, m21, m22 = -s1 * r00 + c1 * r10, -s1 * r01 + c1 * r11, -s1 * r02 + c1 * r12
         for i_el in range(n_el):
-            theta3 = elbows[i_el]
+            theta3 = el0 if i_el == 0 else el1
             c3, s3 = math.cos(theta3), math.sin(theta3)
             big_x = a2 + a3 * c3 + d4 * s3
             big_y = a3 * s3 - d4 * c3
@@ -172,29 +163,27 @@ def _puma_raw(
             # rows m0, m1 of 3_R_6 = Rz(-theta23) A
             theta23 = theta2 + theta3
             c23, s23 = math.cos(theta23), math.sin(theta23)
-            m0[0] = c23 * a00 + s23 * a10
-            m0[1] = c23 * a01 + s23 * a11
-            m0[2] = c23 * a02 + s23 * a12
-            m1[0] = -s23 * a00 + c23 * a10
-            m1[1] = -s23 * a01 + c23 * a11
-            m1[2] = -s23 * a02 + c23 * a12
-            s5_abs = math.hypot(m0[2], m2[2])
+            m00 = c23 * a00 + s23 * a10
+            m01 = c23 * a01 + s23 * a11
+            m02 = c23 * a02 + s23 * a12
+            m12 = -s23 * a02 + c23 * a12
+            s5_abs = math.hypot(m02, m22)
             if s5_abs < WRIST_SINGULAR:
                 n_wr = 1
                 wc0, ws0, wt0 = c4f, s4f, theta4_free
                 wc1, ws1, wt1 = 0.0, 0.0, 0.0
             else:
                 n_wr = 2
-                wt0 = math.atan2(m2[2], m0[2])
-                wc0, ws0 = m0[2] / s5_abs, m2[2] / s5_abs
+                wt0 = math.atan2(m22, m02)
+                wc0, ws0 = m02 / s5_abs, m22 / s5_abs
                 wc1, ws1, wt1 = -wc0, -ws0, wt0 + math.pi
             for i_wr in range(n_wr):
                 if i_wr == 0:
                     c4, s4, theta4 = wc0, ws0, wt0
                 else:
                     c4, s4, theta4 = wc1, ws1, wt1
-                theta5 = math.atan2(c4 * m0[2] + s4 * m2[2], -m1[2])
-                theta6 = math.atan2(-s4 * m0[0] + c4 * m2[0], -s4 * m0[1] + c4 * m2[1])
+                theta5 = math.atan2(c4 * m02 + s4 * m22, -m12)
+                theta6 = math.atan2(-s4 * m00 + c4 * m20, -s4 * m01 + c4 * m21)
                 raw[n, 0] = _wrap_py(signs[0] * (theta1 - offsets[0]))
                 raw[n, 1] = _wrap_py(signs[1] * (theta2 - offsets[1]))
                 raw[n, 2] = _wrap_py(signs[2] * (theta3 - offsets[2]))
