@@ -67,15 +67,18 @@ def _puma_params(robot: Robot) -> PumaKernelParams:
 
 @njit(**JIT)
 def _wrap_py(angle: float) -> float:
-    """``ik_puma._wrap``: angle into (-pi, pi]."""
-    out = math.pi - (math.pi - angle) % _TWO_PI
+    """``ik_puma._wrap``: angle into (-pi, pi], bit for bit. The modulo (a slow ``fmod``) is skipped
+    where it returns its argument unchanged (``0 <= x < 2 pi``), the usual case."""
+    x = math.pi - angle
+    out = math.pi - (x if 0.0 <= x < _TWO_PI else x % _TWO_PI)
     return out + _TWO_PI if out <= -math.pi else out
 
 
 @njit(**JIT)
 def _wrap_np(angle: float) -> float:
-    """``ik._wrap`` on one value (the same fold, as numpy computes it)."""
-    out = np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
+    """``ik._wrap`` on one value (the same fold, as numpy computes it), bit for bit."""
+    x = np.pi - angle
+    out = np.pi - (x if 0.0 <= x < 2.0 * np.pi else np.mod(x, 2.0 * np.pi))
     return out + 2.0 * np.pi if out <= -np.pi else out
 
 
