@@ -27,6 +27,7 @@ from shared.spatial import invert
 JIT = dict(cache=True, nogil=True, fastmath=False)
 
 _TWO_PI = 2.0 * math.pi
+_F64 = np.dtype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class PumaKernelParams:
     chain_T_base: np.ndarray  # (4, 4) inverse of base_T_chain
     tool_T_flange: np.ndarray  # (4, 4) inverse of flange_T_tool
     packed: np.ndarray  # (50,) all of the above in one array, for a cheap kernel call
+    tolerance: float  # the robot file's ik_limit_tolerance, at least LIMIT_TOLERANCE (rad)
 
 
 _PARAMS: dict[int, tuple[object, PumaKernelParams]] = {}
@@ -60,6 +62,7 @@ def _puma_params(robot: Robot) -> PumaKernelParams:
     params = PumaKernelParams(
         lengths=lengths, signs=signs, offsets=offsets, chain_T_base=chain_T_base, tool_T_flange=tool_T_flange,
         packed=np.concatenate([lengths, signs, offsets, chain_T_base.ravel(), tool_T_flange.ravel()]),
+        tolerance=max(float(desc.ik_limit_tolerance), LIMIT_TOLERANCE),
     )
     _PARAMS[id(desc)] = (desc, params)
     return params
@@ -286,7 +289,12 @@ def puma_nearest_packed(
     tolerance: float, respect_limits: bool, out: np.ndarray,
 ) -> int:
     """``puma_nearest_kernel`` with the robot's parameters in one array (``PumaKernelParams.packed``):
-    fewer arguments for the dispatcher to type on every call."""
+    fewer arguments for the dispatcher to type on every call. Also -3: the pose is not (4, 4);
+    -4: ``q_ref`` is not (6,)."""
+    if base_T_tool.shape[0] != 4 or base_T_tool.shape[1] != 4:
+        return -3
+    if q_ref.shape[0] != 6 or out.shape[0] != 6:
+        return -4
     return puma_nearest_kernel(
         base_T_tool, packed[18:34].reshape(4, 4), packed[34:50].reshape(4, 4),
         packed[0:6], packed[6:12], packed[12:18], q_ref, lower, upper, tolerance, respect_limits, out,
@@ -328,36 +336,45 @@ def solve_ik_nearest(
     """The IK solution nearest ``q_seed`` (zeros if None): what ``solve_ik(...)[0]`` returns with
     the same arguments (``q_near=q_seed``), or None where that list is empty. ``base_T_tool`` is
     the tool pose (4, 4) in the base frame; ``position`` (3,) serves position-only robots."""
-    if robot.description.ik != "puma":
+    desc = robot.description
+    if desc.ik != "puma":
         sols = solve_ik(
             robot, base_T_tool, position=position, q_near=q_seed,
             respect_limits=respect_limits, limit_tolerance=limit_tolerance,
         )
         return sols[0] if sols else None
-    if base_T_tool is None:
+    hit = _PARAMS.get(id(desc))
+    params = hit[1] if hit is not None and hit[0] is desc else _puma_params(robot)
+    # the common call (float64 arrays, the robot's own tolerance) goes straight to the kernel,
+    # which checks shapes and finiteness; anything else is converted and checked here first
+    if type(q_seed) is np.ndarray and q_seed.dtype is _F64 and q_seed.ndim == 1:
+        q_ref = q_seed
+    elif q_seed is None:
+        q_ref = np.zeros(robot.dof)
+    else:
+        q_ref = robot.as_q(q_seed)
+    if type(base_T_tool) is np.ndarray and base_T_tool.dtype is _F64 and base_T_tool.ndim == 2:
+        target = base_T_tool
+    elif base_T_tool is None:
         if position is None:
             raise InputError("inverse kinematics needs a target pose or position")
         raise InputError("the PUMA needs a full tool pose (position and orientation)")
-    params = _puma_params(robot)
-    if q_seed is None:
-        q_ref = np.zeros(robot.dof)
-    elif isinstance(q_seed, np.ndarray) and q_seed.dtype == np.float64 and q_seed.shape == (robot.dof,):
-        q_ref = q_seed  # finiteness checked in the kernel
     else:
-        q_ref = robot.as_q(q_seed)
+        target = np.asarray(base_T_tool, dtype=float)
+        if target.shape != (4, 4):
+            raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
     if limit_tolerance is None:
-        limit_tolerance = robot.description.ik_limit_tolerance
-    if not limit_tolerance >= 0.0:
+        tolerance = params.tolerance
+    elif limit_tolerance >= 0.0:
+        tolerance = max(float(limit_tolerance), LIMIT_TOLERANCE)
+    else:
         raise InputError(f"the IK limit tolerance must be zero or more; got {limit_tolerance}")
-    target = base_T_tool if isinstance(base_T_tool, np.ndarray) and base_T_tool.dtype == np.float64 else np.asarray(base_T_tool, dtype=float)
-    if target.shape != (4, 4):
-        raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
     out = np.empty(robot.dof)
-    found = puma_nearest_packed(
-        target, params.packed, q_ref, robot.lower, robot.upper, max(float(limit_tolerance), LIMIT_TOLERANCE), bool(respect_limits), out,
-    )
-    if found == -2:
-        robot.as_q(q_ref)  # raises the usual message for a NaN or infinite joint vector
-    if found < 0:
-        raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
-    return out if found else None
+    found = puma_nearest_packed(target, params.packed, q_ref, robot.lower, robot.upper, tolerance, bool(respect_limits), out)
+    if found > 0:
+        return out
+    if found == 0:
+        return None
+    if found == -2 or found == -4:
+        robot.as_q(q_ref)  # raises the usual message (wrong length, NaN or infinity)
+    raise InputError(f"the PUMA IK needs a finite (4, 4) flange pose, got shape {target.shape}")
