@@ -13,6 +13,7 @@ to rounding. Robots without that closed form (the rover, DLS robots) go through 
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,14 +44,15 @@ class PumaKernelParams:
     tolerance: float  # the robot file's ik_limit_tolerance, at least LIMIT_TOLERANCE (rad)
 
 
-_PARAMS: dict[int, tuple[object, PumaKernelParams]] = {}
+#: id(description) -> (weak reference to it, its parameters); the entry goes with the description
+_PARAMS: dict[int, tuple[weakref.ref, PumaKernelParams]] = {}
 
 
 def _puma_params(robot: Robot) -> PumaKernelParams:
     """The kernel parameters of ``robot``'s description (checked and cached on first use)."""
     desc = robot.description
     hit = _PARAMS.get(id(desc))
-    if hit is not None and hit[0] is desc:
+    if hit is not None and hit[0]() is desc:
         return hit[1]
     check_puma_structure(desc.joints)
     j1, j2, j3, j4, _j5, j6 = desc.joints
@@ -64,7 +66,8 @@ def _puma_params(robot: Robot) -> PumaKernelParams:
         packed=np.concatenate([lengths, signs, offsets, chain_T_base.ravel(), tool_T_flange.ravel()]),
         tolerance=max(float(desc.ik_limit_tolerance), LIMIT_TOLERANCE),
     )
-    _PARAMS[id(desc)] = (desc, params)
+    key = id(desc)
+    _PARAMS[key] = (weakref.ref(desc, lambda _ref: _PARAMS.pop(key, None)), params)
     return params
 
 
@@ -344,7 +347,7 @@ def solve_ik_nearest(
         )
         return sols[0] if sols else None
     hit = _PARAMS.get(id(desc))
-    params = hit[1] if hit is not None and hit[0] is desc else _puma_params(robot)
+    params = hit[1] if hit is not None and hit[0]() is desc else _puma_params(robot)
     # the common call (float64 arrays, the robot's own tolerance) goes straight to the kernel,
     # which checks shapes and finiteness; anything else is converted and checked here first
     if type(q_seed) is np.ndarray and q_seed.dtype is _F64 and q_seed.ndim == 1:
