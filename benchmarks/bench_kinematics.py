@@ -1,5 +1,8 @@
 """Kinematics benchmark: FK, Jacobian and IK (cold and warm goals) for the PUMA 562.
 
+Also the nearest-solution IK that jogging calls (``solve_ik_nearest``, one compiled call),
+seeded as jogging seeds it: from the previous step of a smooth joint path.
+
 Compares this project's closed-form IK with pinocchio's own numeric IK loop (the CLIK example of
 pinocchio's documentation: log6 error, frame Jacobian, damped pseudo-inverse, integrate) and
 with ikpy (an established PyPI IK solver) on the same goals. Prints a table and, with --json,
@@ -17,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from shared.robots.ik import solve_ik
+from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.loader import load_robot
 from shared.spatial import matrix_to_rpy
 
@@ -35,6 +39,23 @@ def timed(fn: Callable[[], object], repeat: int = 1) -> float:
         fn()
         best = min(best, time.perf_counter() - t0)
     return best
+
+
+def smooth_path(rng: np.random.Generator, n: int, step_deg: float = 0.5) -> np.ndarray:
+    """``n`` joint vectors (n, dof) of a random smooth walk inside the ranges: each joint moves
+    about ``step_deg`` per step, turning back at its limits (a jog drag's successive targets)."""
+    lo, hi = ROBOT.lower + 0.05, ROBOT.upper - 0.05
+    q = np.empty((n, ROBOT.dof))
+    q[0] = rng.uniform(lo, hi)
+    velocity = rng.choice([-1.0, 1.0], size=ROBOT.dof) * np.radians(step_deg)
+    for i in range(1, n):
+        velocity = velocity + rng.normal(0.0, np.radians(step_deg) * 0.1, size=ROBOT.dof)
+        velocity = np.clip(velocity, -np.radians(step_deg), np.radians(step_deg))
+        nxt = q[i - 1] + velocity
+        bounce = (nxt < lo) | (nxt > hi)
+        velocity[bounce] *= -1.0
+        q[i] = np.clip(q[i - 1] + velocity, lo, hi)
+    return q
 
 
 def pinocchio_clik(target: pin.SE3, q0: np.ndarray, data: pin.Data, eps: float = 1e-9, it_max: int = 1000) -> tuple[np.ndarray, bool]:
@@ -98,17 +119,38 @@ def run(n_goals: int, n_batch: int, with_ikpy: bool, seed: int = 0) -> dict:
     def clik(seeds: np.ndarray) -> int:
         return sum(pinocchio_clik(pin.SE3(g[:3, :3], g[:3, 3]), s, data)[1] for g, s in zip(goals, seeds))
 
+    def ours_nearest() -> int:
+        return sum(solve_ik_nearest(ROBOT, g, q0) is not None for g, q0 in zip(goals, warm_from))
+
+    # a smooth path (what a jog drag produces): each goal is FK of the next point, seeded from
+    # the previous point's joints; the closed form and CLIK are run on the same path
+    path_q = smooth_path(rng, n_goals)
+    path_goals = [ROBOT.fk(q, data).copy() for q in path_q]
+
+    def path_nearest() -> int:
+        return sum(solve_ik_nearest(ROBOT, g, q0) is not None for g, q0 in zip(path_goals[1:], path_q[:-1]))
+
+    def path_clik() -> int:
+        return sum(
+            pinocchio_clik(pin.SE3(g[:3, :3], g[:3, 3]), q0, data)[1] for g, q0 in zip(path_goals[1:], path_q[:-1])
+        )
+
+    solve_ik_nearest(ROBOT, goals[0], warm_from[0])  # compile (or load the cache) outside the timing
     neutral = np.tile(pin.neutral(ROBOT.model), (n_goals, 1))
     for name, fn in [
         ("ik_cold_closed_form", ours_cold),
         ("ik_warm_closed_form", ours_warm),
         ("ik_cold_pinocchio_clik", lambda: clik(neutral)),
         ("ik_warm_pinocchio_clik", lambda: clik(warm_from)),
+        ("ik_warm_nearest", ours_nearest),
+        ("ik_path_nearest", path_nearest),
+        ("ik_path_pinocchio_clik", path_clik),
     ]:
+        calls = n_goals - 1 if name.startswith("ik_path") else n_goals
         t0 = time.perf_counter()
         ok = fn()
         t = time.perf_counter() - t0
-        out[name] = {"per_call_us": t / n_goals * 1e6, "batch_10k_ms": t / n_goals * 1e4 * 1e3, "success": ok / n_goals}
+        out[name] = {"per_call_us": t / calls * 1e6, "batch_10k_ms": t / calls * 1e4 * 1e3, "success": ok / calls}
 
     if with_ikpy:
         chain = make_ikpy_chain()
@@ -122,6 +164,8 @@ def run(n_goals: int, n_batch: int, with_ikpy: bool, seed: int = 0) -> dict:
             t = time.perf_counter() - t0
             out[name] = {"per_call_us": t / m * 1e6, "batch_10k_ms": t / m * 1e4 * 1e3, "success": ok / m}
 
+    for name, peer in (("ik_warm_nearest", "ik_warm_pinocchio_clik"), ("ik_path_nearest", "ik_path_pinocchio_clik")):
+        out[name]["speedup_vs_pinocchio_clik"] = out[peer]["per_call_us"] / out[name]["per_call_us"]
     for kind in ("cold", "warm"):
         ours = out[f"ik_{kind}_closed_form"]["per_call_us"]
         out[f"ik_{kind}_closed_form"]["speedup_vs_pinocchio_clik"] = out[f"ik_{kind}_pinocchio_clik"]["per_call_us"] / ours

@@ -58,7 +58,7 @@ from shared.language.statements import (
 )
 from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArgKind, TaskSpec, resolve_name
-from shared.robots.ik import solve_ik
+from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import LIMIT_TOLERANCE, Robot
 from shared.spatial import invert, rpy_to_matrix
 
@@ -328,13 +328,11 @@ class _Checker:
         base_T_tool = invert(self.world_T_base) @ world_T_tcp @ invert(self.flange_T_tcp)
         try:
             if self.position_only:
-                sols = solve_ik(self.robot, position=base_T_tool[:3, 3], q_near=self.q, respect_limits=respect_limits)
-            else:
-                sols = solve_ik(self.robot, base_T_tool, q_near=self.q, respect_limits=respect_limits)
+                return solve_ik_nearest(self.robot, position=base_T_tool[:3, 3], q_seed=self.q, respect_limits=respect_limits)
+            return solve_ik_nearest(self.robot, base_T_tool, self.q, respect_limits=respect_limits)
         except TeleprogError as exc:  # a solver that cannot take this target at all
             log.debug("IK refused a target: %s", exc)
             return None
-        return sols[0] if sols else None
 
     def task(self, index: int, st: TaskCall) -> None:
         spec = TASKS.get(st.name) or TASKS.get(st.name.lower())

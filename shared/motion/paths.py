@@ -24,6 +24,7 @@ import numpy as np
 from shared.motion.frames import CellFrames
 from shared.motion.refusal import PlanRefused, RefusalReason
 from shared.robots.ik import solve_ik
+from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import Robot
 from shared.spatial import exp_so3, log_so3
 
@@ -231,9 +232,9 @@ def solve_nearest(robot: Robot, frames: CellFrames, world_T_tcp: np.ndarray, q_n
         kwargs = {"position": base_T_tool[:3, 3]}
     else:
         kwargs = {"base_T_tool": base_T_tool}
-    solutions = solve_ik(robot, q_near=q_near, **kwargs)
-    if solutions:
-        return solutions[0]
+    best = solve_ik_nearest(robot, q_seed=q_near, **kwargs)
+    if best is not None:
+        return best
     where = 1e3 * world_T_tcp[:3, 3]
     place = f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm in WORLD ({100 * at:.1f} % of the line)"
     free = solve_ik(robot, q_near=q_near, respect_limits=False, **kwargs)

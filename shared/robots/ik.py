@@ -9,6 +9,10 @@ Every solution is returned as ``(dof,)`` radians; with ``respect_limits`` each c
 solution is mapped into the joint ranges (adding multiples of 2 pi where a range is wider than
 a turn) and dropped if it cannot be, except that one within the robot's ``ik_limit_tolerance``
 of a range is clamped onto its limit; solutions are ordered nearest to ``q_near`` first.
+
+Callers that want only the nearest solution (jogging, the planner's next step, the program
+checks) use ``shared.robots.ik_kernels.solve_ik_nearest``: the same first solution, computed in
+one compiled call for the PUMA; keep the two in step when changing the rules here.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from shared.errors import InputError, UnknownNameError
-from shared.robots.ik import solve_ik
+from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import Robot
 from shared.spatial import exp_so3, invert, log_so3
 
@@ -112,19 +112,13 @@ def jog_joint(robot: Robot, q: np.ndarray, joint: int, delta: float) -> JogResul
 def _solve_step(robot: Robot, q: np.ndarray, world_T_tcp_target: np.ndarray, frames: JogFrames) -> JogResult:
     base_T_tool = invert(frames.world_T_base) @ world_T_tcp_target @ invert(frames.tool_T_tcp)
     position_only = robot.dof < 6
-    if position_only:
-        solutions = solve_ik(robot, position=base_T_tool[:3, 3], q_near=q)
-    else:
-        solutions = solve_ik(robot, base_T_tool, q_near=q)
-    if not solutions:
-        unlimited = (
-            solve_ik(robot, position=base_T_tool[:3, 3], q_near=q, respect_limits=False)
-            if position_only else solve_ik(robot, base_T_tool, q_near=q, respect_limits=False)
-        )
-        if unlimited:
+    # only the solution nearest the current joints matters (the arm never jumps branch)
+    target = {"position": base_T_tool[:3, 3]} if position_only else {"base_T_tool": base_T_tool}
+    best = solve_ik_nearest(robot, q_seed=q, **target)
+    if best is None:
+        if solve_ik_nearest(robot, q_seed=q, respect_limits=False, **target) is not None:
             return JogResult(q, moved=False, blocked="joint_limit", message="the target needs a joint beyond its limit")
         return JogResult(q, moved=False, blocked="unreachable", message="the target is out of the arm's reach")
-    best = solutions[0]
     change = np.abs(best - q)
     k = int(np.argmax(change))
     if change[k] > MAX_STEP_JOINT_CHANGE:
