@@ -103,7 +103,8 @@ class Console:
         # forward kinematics and viser's message building on every jog and telemetry frame. A
         # skipped drawing marks the scene stale; the next page to connect gets it redrawn.
         self._stale = False
-        self.server.on_client_connect(self._on_page)
+        self._connecting = False
+        self.server.on_client_connect(self.on_page_connect)
         self._mode = DisplayMode.TELEPROGRAMMING
         self._arm: ArmView | None = None
         self._remote: RemoteArmView | None = None
@@ -198,20 +199,26 @@ class Console:
     # -- drawing by display mode --------------------------------------------------------------
     def _watched(self) -> bool:
         """Is a page connected? If not, remember the scene needs drawing when one is."""
-        if self.server.get_clients():
+        if self._connecting or self.server.get_clients():
             return True
         self._stale = True
         return False
 
-    def _on_page(self, _client) -> None:
+    def on_page_connect(self, _client=None) -> None:
+        """Draw what was skipped while no page was connected (viser calls this per new page)."""
         with self._lock:
-            if self._stale:
-                self._stale = False
+            if not self._stale:
+                return
+            self._stale = False
+            self._connecting = True  # draw now, whether or not viser lists the page yet
+            try:
                 if self._arm is not None:
                     self.drive.show_arm(self._arm)
                 self._draw_arm()
                 self._draw_ghost()
                 self._draw_collision()
+            finally:
+                self._connecting = False
 
     def _draw_arm(self) -> None:
         if not self._watched():
