@@ -78,3 +78,22 @@ def test_a_bad_setting_in_the_environment_is_one_line(variable, value, args, fie
     assert len(lines) == 1, out.stderr
     line = lines[0]
     assert line.startswith("teleprog: error:") and field in line and repr(value) in line
+
+
+def test_every_subcommand_prints_its_help() -> None:
+    """Every command and sub-command's --help formats (a stray % in a help text used to end
+    ``teleprog trial --help`` in a traceback)."""
+    import argparse
+
+    from server.cli import build_parser
+
+    def walk(parser: argparse.ArgumentParser) -> int:
+        parser.format_help()
+        count = 1
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for child in action.choices.values():
+                    count += walk(child)
+        return count
+
+    assert walk(build_parser()) > 20

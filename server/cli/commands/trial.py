@@ -119,7 +119,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("trial", help="the thesis's trials (4.6) as repeatable experiments: " + ", ".join(KINDS))
     kinds = p.add_subparsers(dest="trial_kind", required=True, parser_class=type(p))
     for kind, help_text in KINDS.items():
-        a = kinds.add_parser(kind, help=help_text, description=help_text)
+        a = kinds.add_parser(kind, help=help_text.replace("%", "%%"), description=help_text)  # help strings are %-formatted
         a.add_argument("--runs", type=int, default=1, metavar="N", help="how many runs (of each mode), each a fresh session (default 1)")
         a.add_argument("--delay-ms", type=float, default=3000.0, metavar="D", help="link delay each way, ms (default 3000)")
         a.add_argument("--seed", type=int, default=0, metavar="S",
