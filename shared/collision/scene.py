@@ -397,6 +397,7 @@ class SceneModel:
         if object_pair_ids:  # find the resting contacts in the cell as loaded
             mode = np.zeros(len(pairs), dtype=np.int8)
             mode[object_pair_ids] = 1
+            mode.flags.writeable = False  # as every mode the checks pass: one compiled signature
             raw = model._run(model._world_poses(cell.q_home, None), mode, model.new_data(), first_only=True)
             resting = [model.pair_names[p] for p in object_pair_ids if raw[0][p]]
             model.resting_pairs = frozenset(frozenset(r) for r in resting)
