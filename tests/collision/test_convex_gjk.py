@@ -7,12 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-
-from shared.collision import kernels
-from shared.collision.convex import convex_piece, convex_pieces
 from numba import njit
 from scipy.optimize import linprog
 
+from shared.collision import kernels
+from shared.collision.convex import convex_piece, convex_pieces
 from shared.collision.distance import tri_tri_dist2
 from shared.collision.gjk import APART, OVERLAP, PRUNED, gjk_distance
 from shared.collision.mesh_model import body_mesh_from_arrays
