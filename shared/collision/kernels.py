@@ -1,6 +1,8 @@
 """Compiled scene traversal: sphere -> AABB -> OBB tree -> triangles, and exact distances.
 
-One numba call checks every active body pair of a scene. The bodies' hierarchies are packed in
+One numba call checks every active body pair of a scene (``check_packed``: the model's arrays
+in two packed buffers, the links placed from ``q`` inside). Distances between bodies made of
+certified convex pieces are GJK's (``_convex_distance``); other bodies descend their trees. The bodies' hierarchies are packed in
 flat arrays (``scene.PackedScene``): node arrays are global (child and triangle indices already
 offset), so the kernel signature does not depend on the number of bodies.
 
