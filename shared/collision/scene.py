@@ -676,19 +676,12 @@ class SceneModel:
         """
         if data is None:
             data = self._data(None)
-        if (self._chained and not object_poses and not skip and type(distances) is str and type(q) is np.ndarray
+        if (self._chained and not object_poses and not skip and type(q) is np.ndarray
                 and q.dtype == np.float64 and q.ndim == 1 and q.flags.c_contiguous):
-            # the display-rate call, without the general path's steps (they cost as much as
-            # the kernel's own work on a coherent drag)
-            mode = data.mode_cache.get(distances)
-            if mode is None:
-                mode = self._mode(data, distances, skip, _NOTHING_MOVED)
-            hit = np.empty(self._n_pairs, dtype=np.bool_)
-            res = np.empty((self._n_pairs, 7))
-            n_out = kernels.check_packed(self._mf, self._mi, q, self._template_poses, True, mode, bool(triangles),
-                                         data.sf, data.si, data.out, hit, res)
-            if 0 <= n_out <= data.out.shape[1]:
-                return self._report(data, hit, res, n_out, mode)
+            # the display-rate call goes straight to the compiled check: the general path's
+            # helper calls cost as much as the kernel's own work on a coherent drag
+            mode = self._mode(data, distances, skip, _NOTHING_MOVED)
+            return self._report(data, *self._run(self._template_poses, mode, data, not triangles, q), mode)
         moved = frozenset(object_poses) if object_poses else _NOTHING_MOVED
         mode = self._mode(data, distances, skip, moved)
         return self._report(data, *self._check_q(q, object_poses, mode, data, not triangles), mode)
