@@ -126,7 +126,8 @@ class Console:
             self._draw_arm()
         elif isinstance(event, CollisionChanged):
             self._collision = event.collision
-            self.drive.show_collision(event.collision)
+            if self._watched():  # the panel's collision line: drawn on connect otherwise
+                self.drive.show_collision(event.collision)
             self._draw_collision()
         elif isinstance(event, ProgramChanged):
             self.drive.show_program(event.program)
@@ -214,6 +215,8 @@ class Console:
             try:
                 if self._arm is not None:
                     self.drive.show_arm(self._arm)
+                if self._collision is not None:
+                    self.drive.show_collision(self._collision)
                 self._draw_arm()
                 self._draw_ghost()
                 self._draw_collision()

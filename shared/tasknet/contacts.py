@@ -103,6 +103,7 @@ class ContactModel:
         self._conditions: dict[str, tuple[_Clause, ...]] = {
             atom.text: self._compile(atom.predicate, atom.args) for atom in space.atoms
         }
+        self._plans: dict[tuple[tuple[str, ...], tuple[str, ...]], _Plan] = {}
         self.pairs_checked = 0
         """Face pairs measured so far (the work state recognition has done)."""
 
@@ -169,32 +170,70 @@ class ContactModel:
 
     def evaluate(self, state: CellState, atoms: Iterable[str] | None = None) -> dict[str, bool]:
         """The truth of ``atoms`` (all of the task space's when None) in ``state``."""
-        wanted = list(self._conditions) if atoms is None else list(dict.fromkeys(atoms))
+        wanted = tuple(self._conditions) if atoms is None else tuple(dict.fromkeys(atoms))
         faces = self._world_faces(state)
+        present = tuple(name for name in self._kind_of if name in faces)
+        key = (wanted, present)
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = self._plans[key] = self._plan(wanted, present)
+        if plan.left.size:
+            stacked = np.concatenate([faces[name] for name in present])
+            gaps = quad_pair_distances(stacked[plan.left], stacked[plan.right])
+            self.pairs_checked += int(gaps.size)
+            touch_block = np.minimum.reduceat(gaps, plan.block_starts) <= self.tolerance
+        else:
+            touch_block = np.zeros(0, dtype=bool)
+        truth = dict.fromkeys(wanted, True)
+        for atom, holds, lo, hi in plan.spans:
+            touching = bool(touch_block[lo:hi].any()) if hi > lo else False
+            if touching != holds:
+                truth[atom] = False
+        return truth
+
+    def _plan(self, wanted: tuple[str, ...], present: tuple[str, ...]) -> "_Plan":
+        """The face pairs of ``wanted``'s clauses as indices into the faces of ``present``
+        stacked in that order, one block per pair of individuals (built once per key)."""
+        offset: dict[str, int] = {}
+        n = 0
+        for name in present:
+            offset[name] = n
+            n += self._face_count(name)
         left: list[np.ndarray] = []
         right: list[np.ndarray] = []
-        spans: list[tuple[str, bool, int, int]] = []  # atom, holds, first pair, end
+        spans: list[tuple[str, bool, int, int]] = []  # atom, holds, first block, end
         for atom in wanted:
             for clause in self._conditions[atom]:
                 start = len(left)
                 for ia in clause.a.who:
                     for ib in clause.b.who:
-                        if ia == ib or ia not in faces or ib not in faces:
+                        if ia == ib or ia not in offset or ib not in offset or not clause.a.faces or not clause.b.faces:
                             continue
-                        fa, fb = faces[ia][list(clause.a.faces)], faces[ib][list(clause.b.faces)]
-                        left.append(np.repeat(fa, len(fb), axis=0))
-                        right.append(np.tile(fb, (len(fa), 1, 1)))
+                        fa = offset[ia] + np.asarray(clause.a.faces, dtype=np.intp)
+                        fb = offset[ib] + np.asarray(clause.b.faces, dtype=np.intp)
+                        left.append(np.repeat(fa, len(fb)))
+                        right.append(np.tile(fb, len(fa)))
                 spans.append((atom, clause.holds, start, len(left)))
-        if left:
-            blocks = [len(x) for x in left]
-            gaps = quad_pair_distances(np.ascontiguousarray(np.concatenate(left)), np.ascontiguousarray(np.concatenate(right)))
-            self.pairs_checked += int(gaps.size)
-            touch_block = np.array([g.min() <= self.tolerance for g in np.split(gaps, np.cumsum(blocks)[:-1])])
-        else:
-            touch_block = np.zeros(0, dtype=bool)
-        truth = {atom: True for atom in wanted}
-        for atom, holds, lo, hi in spans:
-            touching = bool(touch_block[lo:hi].any()) if hi > lo else False
-            if touching != holds:
-                truth[atom] = False
-        return truth
+        sizes = np.array([len(x) for x in left], dtype=np.intp)
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp) if left else np.zeros(0, dtype=np.intp)
+        empty = np.zeros(0, dtype=np.intp)
+        return _Plan(
+            np.concatenate(left) if left else empty, np.concatenate(right) if right else empty, starts, tuple(spans)
+        )
+
+    def _face_count(self, name: str) -> int:
+        if name in self._fixed:
+            return len(self._fixed[name])
+        kind = self._kind_of[name]
+        local = self._local.get(kind)
+        return len(local if local is not None else self._local[f"{kind}/open"])
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What :meth:`ContactModel.evaluate` measures for one set of atoms and individuals."""
+
+    left: np.ndarray  # face indices into the stacked faces, one row per face pair
+    right: np.ndarray
+    block_starts: np.ndarray  # the first pair of each pair of individuals (no block is empty)
+    spans: tuple[tuple[str, bool, int, int], ...]  # atom, holds, first block, end

@@ -54,6 +54,9 @@ class TaskCoordinator:
         self.marking: frozenset[str] = self.m0
         self.actions: list[RecognisedAction] = []
         self._last_truth: dict[str, bool] = truth
+        # per marking: the enabled actions, each with its added atoms, and the atoms they change
+        # (observe runs on every state the arm passes through; the marking rarely changes)
+        self._at_marking: dict[frozenset[str], tuple[tuple[tuple[GroundAction, tuple[str, ...]], ...], tuple[str, ...]]] = {}
 
     # -- the net at the current marking ----------------------------------------------------------
     def enabled(self) -> list[GroundAction]:
@@ -78,15 +81,13 @@ class TaskCoordinator:
         """Recognise the actions ``state`` completes; returns them (usually none)."""
         done: list[RecognisedAction] = []
         for _ in range(MAX_FIRINGS_PER_STATE):
-            enabled = self.enabled()
-            wanted = {a for act in enabled for a in self._changes(act)}
+            enabled, wanted = self._options()
             if not wanted:
                 break
             truth = self.contacts.evaluate(state, wanted)
             self._last_truth.update(truth)
             fired = None
-            for act in enabled:
-                added = [a for a in act.post if a not in act.pre]
+            for act, added in enabled:
                 if all(truth[a] for a in added) and not any(truth[a] for a in act.delete):
                     fired = act
                     break
@@ -97,6 +98,16 @@ class TaskCoordinator:
             self.actions.append(rec)
             done.append(rec)
         return done
+
+    def _options(self) -> tuple[tuple[tuple[GroundAction, tuple[str, ...]], ...], tuple[str, ...]]:
+        """At the current marking: the enabled actions with their added atoms, and the atoms
+        they change (what :meth:`observe` asks the contact model for)."""
+        kept = self._at_marking.get(self.marking)
+        if kept is None:
+            enabled = tuple((act, tuple(a for a in act.post if a not in act.pre)) for act in self.enabled())
+            wanted = tuple(dict.fromkeys(a for act, _ in enabled for a in self._changes(act)))
+            kept = self._at_marking[self.marking] = (enabled, wanted)
+        return kept
 
     def unexplained(self, state: CellState) -> dict[str, bool]:
         """Every atom whose truth in ``state`` disagrees with the marking: ``{atom: observed}``."""
