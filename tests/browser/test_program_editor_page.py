@@ -81,8 +81,10 @@ def click_line(ui: ConsolePage, index: int, shift: bool = False) -> None:
 
 
 def selected_lines(ui: ConsolePage) -> list[int]:
+    """The lines drawn selected, read in one go: counting them and then reading each one lets
+    the list re-render in between, and an element gone by then is waited for until a timeout."""
     found = ui.page.locator('[data-program-list] [data-selected="true"]')
-    return [int(found.nth(i).get_attribute("data-stmt-index")) for i in range(found.count())]
+    return found.evaluate_all("els => els.map(e => Number(e.getAttribute('data-stmt-index')))")
 
 
 def range_is(ui: ConsolePage, first: int, last: int) -> None:
