@@ -48,7 +48,6 @@ from collections.abc import Generator, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
-from pydantic import BaseModel, Field
 
 from shared.cells.cell import Cell
 from shared.collision import SceneModel

@@ -4,12 +4,10 @@ listens before it imports the collision and motion code (``robot_sim.service``).
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from pathlib import Path
-
-from shared.paths import DEFAULT_CELL, USER_CACHE_DIR
+from shared.paths import DEFAULT_CELL, USER_CACHE_DIR, CacheDir
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
 from shared.wire.telemetry import FRAME_RATE_HZ
 
@@ -58,14 +56,9 @@ class RobotSettings(BaseSettings):
         DEFAULT_SILENCE_LIMIT_S, gt=0.0, le=3600.0,
         description="silence from the console beyond the heartbeat interval at which the robot stops (s)",
     )
-    cache_dir: Path | None = Field(
+    cache_dir: CacheDir = Field(
         USER_CACHE_DIR, description="folder of the collision-model cache (teleprog up passes its own; empty: none)"
     )
-    @field_validator("cache_dir", mode="before")
-    @classmethod
-    def _empty_is_none(cls, value: object) -> object:
-        return None if value is None or str(value).strip() in ("", "none") else value
-
     listen_first: bool = Field(
         False,
         description="listen before loading the cell and building the core; /health says core_ready "

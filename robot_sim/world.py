@@ -22,13 +22,12 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydantic import BaseModel, Field
 
 from shared.cells.cell import Cell
 from shared.robots.model import Robot
 from shared.spatial import invert, matrix_to_rpy
 from shared.wire.messages import ObjectPose
-from robot_sim.settings import WorldSettings  # noqa: F401 - its home before robot_sim.settings
+from robot_sim.settings import WorldSettings
 
 log = logging.getLogger(__name__)
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field, field_validator
+from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from shared.paths import DEFAULT_CELL, PROJECT_DIR, USER_CACHE_DIR
+from shared.paths import DEFAULT_CELL, PROJECT_DIR, USER_CACHE_DIR, CacheDir
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S
 
 
@@ -30,15 +30,10 @@ class ConsoleSettings(BaseSettings):
     delay_ms: float = Field(3000.0, ge=0.0, description="delay of the started link, each way, ms")
     robot_port: int = Field(0, ge=0, le=65535, description="port of the started telerobot (0: any free)")
     link_port: int = Field(0, ge=0, le=65535, description="port of the started link (0: any free)")
-    cache_dir: Path | None = Field(
+    cache_dir: CacheDir = Field(
         USER_CACHE_DIR,
         description="folder of the collision-model cache, built once per robot and cell (TELEPROG_CACHE_DIR; empty: none)",
     )
-    @field_validator("cache_dir", mode="before")
-    @classmethod
-    def _empty_is_none(cls, value: object) -> object:
-        return None if value is None or str(value).strip() in ("", "none") else value
-
     child_start_timeout_s: float = Field(60.0, gt=0, description="how long to wait for robot and link to listen")
     restart_children: bool = Field(
         True, description="teleprog up starts a telerobot or link child again, on its port, when it exits (--no-restart: off)"

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from server.trials.drivers import Clock, Driver, SentRecord
 from server.trials.open import open_driver
 from server.trials.results import ModeResult, RunResult, StatementTiming

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from server.trials.drivers import Clock
 from server.trials.kind_results import KindRun
 from server.trials.programs import TransferProgram
@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 
 
 class TrialWorld(BaseModel):
-    """How the trials' real world departs from the model (``robot_sim.world.WorldSettings``),
+    """How the trials' real world departs from the model (``robot_sim.settings.WorldSettings``),
     in the units people type. Each run gets these with its own seed."""
 
     model_config = ConfigDict(frozen=True)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from server.trials.drivers import Clock, Driver, SentRecord
 from server.trials.kind_results import KindRun
 from server.trials.open import open_driver

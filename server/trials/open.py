@@ -6,7 +6,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from server.trials.drivers import ApiDriver, Clock, Driver
 
 

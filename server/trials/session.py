@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TypeVar
 
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from shared.errors import TeleprogError
 from shared.paths import PROJECT_DIR
 

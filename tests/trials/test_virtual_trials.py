@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from robot_sim.world import WorldSettings
+from robot_sim.settings import WorldSettings
 from server.trials.batch import RunSpec, TrialWorld, open_executor, run_all, run_spec, world_seed
 from server.trials.kind_results import summarize_kind
 from server.trials.kinds import KIND_MODES, pieces, regime_schedule
