@@ -35,12 +35,9 @@ _F64 = np.dtype(np.float64)
 class PumaKernelParams:
     """What the kernel needs of a PUMA robot file, extracted once per description."""
 
-    lengths: np.ndarray  # (6,) d1, h = d2 + d3, a2, a3, d4, d6 (m)
-    signs: np.ndarray  # (6,) joint sign (+1 / -1) as floats
-    offsets: np.ndarray  # (6,) DH angle offsets (rad)
-    chain_T_base: np.ndarray  # (4, 4) inverse of base_T_chain
-    tool_T_flange: np.ndarray  # (4, 4) inverse of flange_T_tool
-    packed: np.ndarray  # (50,) all of the above in one array, for a cheap kernel call
+    packed: np.ndarray  # (50,) lengths d1, h = d2 + d3, a2, a3, d4, d6 (m); joint signs (+1 / -1);
+    # DH angle offsets (rad); chain_T_base (4 x 4, the inverse of base_T_chain); tool_T_flange
+    # (4 x 4, the inverse of flange_T_tool): one array, so the kernel call types one argument
     tolerance: float  # the robot file's ik_limit_tolerance, at least LIMIT_TOLERANCE (rad)
 
 
@@ -56,14 +53,14 @@ def _puma_params(robot: Robot) -> PumaKernelParams:
         return hit[1]
     check_puma_structure(desc.joints)
     j1, j2, j3, j4, _j5, j6 = desc.joints
-    lengths = np.array([j1.d, j2.d + j3.d, j3.a, j4.a, j4.d, j6.d], dtype=float)
-    signs = np.array([float(j.sign) for j in desc.joints])
-    offsets = np.array([float(j.offset) for j in desc.joints])
-    chain_T_base = np.ascontiguousarray(invert(desc.base_T_chain), dtype=float)
-    tool_T_flange = np.ascontiguousarray(invert(desc.flange_T_tool), dtype=float)
     params = PumaKernelParams(
-        lengths=lengths, signs=signs, offsets=offsets, chain_T_base=chain_T_base, tool_T_flange=tool_T_flange,
-        packed=np.concatenate([lengths, signs, offsets, chain_T_base.ravel(), tool_T_flange.ravel()]),
+        packed=np.concatenate([
+            [j1.d, j2.d + j3.d, j3.a, j4.a, j4.d, j6.d],
+            [float(j.sign) for j in desc.joints],
+            [float(j.offset) for j in desc.joints],
+            np.asarray(invert(desc.base_T_chain), dtype=float).ravel(),
+            np.asarray(invert(desc.flange_T_tool), dtype=float).ravel(),
+        ]).astype(float),
         tolerance=max(float(desc.ik_limit_tolerance), LIMIT_TOLERANCE),
     )
     key = id(desc)
