@@ -63,7 +63,8 @@ def create_app(
     """The console app; ``build_page=False`` serves the API without the 3D page's panels;
     ``children()``: how the processes ``teleprog up`` watches are (shown in the link view);
     ``robot``: a robot client ``teleprog up`` started on its own thread before the app existed
-    (``server.up.early``; the caller closes it), used instead of connecting to ``robot_url`` here."""
+    (``server.up.early``; the caller closes it); without one, the app starts its own the same way
+    when ``robot_url`` is set."""
     settings = settings or ConsoleSettings()
     cell = load_cell(settings.cell)  # fail before serving anything if the cell is broken
     holder: dict[str, ConsoleState] = {}
@@ -74,26 +75,14 @@ def create_app(
         if children is not None:
             session.link.watch_children(children)
         recorder = record_session(session, settings, started_link=children is not None)
-        loop = asyncio.get_running_loop()
         tasks: list[asyncio.Task] = []
-        client = None
-        if robot is not None:
-            session.attach_robot(robot.wait_client(), robot.loop)
-            robot.when_connected(session.dispatch.note_round_trip)  # the round trip alone
-        elif settings.robot_url and not settings.no_robot:
-            from server.robot_client import RobotClient
-
-            client = RobotClient(settings.robot_url, silence_limit_s=settings.silence_limit_s)
-            session.attach_robot(client, loop)
-
-            async def connect() -> None:
-                await client.start(timeout=1e9)  # keeps trying; submissions queue meanwhile
-                if client.handshake_s is not None:  # the round trip alone, not the wait for the robot
-                    session.dispatch.note_round_trip(client.handshake_s)
-                log.info("robot at %s connected", settings.robot_url)
-                mark("console", f"robot connected (handshake {client.handshake_s or 0.0:.3f} s)")
-
-            tasks.append(asyncio.create_task(connect(), name="robot-connect"))
+        own_robot = None  # a robot client this app started itself (closed with it)
+        if robot is None and settings.robot_url and not settings.no_robot:
+            own_robot = EarlyRobot(settings.robot_url, settings, []).start()
+        attached = robot or own_robot
+        if attached is not None:
+            session.attach_robot(attached.wait_client(), attached.loop)
+            attached.when_connected(session.dispatch.note_round_trip)  # the round trip alone
         tasks.append(asyncio.create_task(session.run(), name="session-clock"))
         viser_server = start_viser()
         trials = TrialBatches(settings.cell)
@@ -114,8 +103,8 @@ def create_app(
                 task.cancel()
             with suppress(Exception):
                 await asyncio.gather(*tasks, return_exceptions=True)
-            if client is not None:
-                await client.close()
+            if own_robot is not None:
+                await asyncio.to_thread(own_robot.close)
             if recorder is not None:
                 recorder.close()
             viser_server.stop()

@@ -18,7 +18,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-
 from robot_sim.settings import WorldSettings
 from shared.errors import TeleprogError
 from shared.paths import PROJECT_DIR
