@@ -20,6 +20,7 @@ from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import RedirectResponse
 
 from server.api import include_routers
+from server.api.jog_lane import JogLane
 from server.api.recordings import RecordingNow, RecordingsSource
 from server.trials.service import TrialBatches
 from server.api_docs import add_offline_docs
@@ -125,6 +126,7 @@ def create_app(
 
     add_error_handler(app)
     add_offline_docs(app)
+    app.add_middleware(JogLane)  # the jogs' ordinary requests, ahead of FastAPI's routing
 
     @app.get("/", include_in_schema=False)
     def index() -> RedirectResponse:

@@ -70,19 +70,25 @@ def _where(loc: tuple | list) -> str:
     return ".".join(str(part) for part in loc) or "body"
 
 
+def teleprog_refusal(exc: TeleprogError) -> Response:
+    """The answer to a refusal the console raised: 400 malformed input, 409 not allowed now, 422
+    not possible (also what the jog lane answers, ``server.api.jog_lane``)."""
+    if isinstance(exc, InputError):
+        status = 400
+    elif isinstance(exc, ConflictError):
+        status = 409
+    else:
+        status = 422
+    body: dict[str, str] = {"error": type(exc).__name__, "detail": str(exc)}
+    if isinstance(exc, RefusedByRule):
+        body["rule"] = exc.refusal.rule.value
+    return _json(body, status)
+
+
 def add_error_handler(app: FastAPI) -> None:
     @app.exception_handler(TeleprogError)
     async def _teleprog_error(request: Request, exc: TeleprogError) -> Response:
-        if isinstance(exc, InputError):
-            status = 400
-        elif isinstance(exc, ConflictError):
-            status = 409
-        else:
-            status = 422
-        body: dict[str, str] = {"error": type(exc).__name__, "detail": str(exc)}
-        if isinstance(exc, RefusedByRule):
-            body["rule"] = exc.refusal.rule.value
-        return _json(body, status)
+        return teleprog_refusal(exc)
 
     @app.exception_handler(RequestValidationError)
     async def _validation_error(request: Request, exc: RequestValidationError) -> Response:

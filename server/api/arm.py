@@ -8,7 +8,7 @@ from fastapi import APIRouter
 
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import JogJointIn, JogToolIn, SetJointsIn, StateOut
-from server.console import ArmView, CollisionView, ProgramView, SentListView
+from server.console import ArmView, Caller, CollisionView, ProgramView, SentListView, Session
 
 router = APIRouter(prefix="/api", tags=["arm"])
 
@@ -29,16 +29,13 @@ def set_joints(body: SetJointsIn, session: SessionDep, client: ClientDep) -> Sta
     return StateOut.from_state(session.arm.set_q(np.radians(body.deg), client=client))
 
 
-# The jogs run on the event loop (``async def`` without awaiting): they are short, CPU-bound and
-# take the arm's lock themselves; a plain ``def`` route costs a thread-pool hand-off each way,
-# about a fifth of the console's CPU per jog at jogging rates.
-@router.post("/jog/joint", response_model=StateOut)
-async def jog_joint(body: JogJointIn, session: SessionDep, client: ClientDep) -> StateOut:
+def jog_joint_state(session: Session, body: JogJointIn, client: Caller) -> StateOut:
+    """What ``POST /api/jog/joint`` does (also answered by ``server.api.jog_lane``)."""
     return StateOut.from_state(session.arm.jog_joint(body.joint, float(np.radians(body.delta_deg)), client=client))
 
 
-@router.post("/jog/tool", response_model=StateOut)
-async def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOut:
+def jog_tool_state(session: Session, body: JogToolIn, client: Caller) -> StateOut:
+    """What ``POST /api/jog/tool`` does (also answered by ``server.api.jog_lane``)."""
     scale = 1e-3 if body.motion == "translate" else np.pi / 180.0
     return StateOut.from_state(
         session.arm.jog_tool(
@@ -46,6 +43,21 @@ async def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> S
             displacement=np.array(body.displacement) * scale, client=client,
         )
     )
+
+
+# The jogs run on the event loop (``async def`` without awaiting): they are short, CPU-bound and
+# take the arm's lock themselves; a plain ``def`` route costs a thread-pool hand-off each way,
+# about a fifth of the console's CPU per jog at jogging rates. Their ordinary requests are
+# answered ahead of FastAPI by ``server.api.jog_lane`` with the same functions; these routes
+# document them and give every other answer (a malformed body, a header too long).
+@router.post("/jog/joint", response_model=StateOut)
+async def jog_joint(body: JogJointIn, session: SessionDep, client: ClientDep) -> StateOut:
+    return jog_joint_state(session, body, client)
+
+
+@router.post("/jog/tool", response_model=StateOut)
+async def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOut:
+    return jog_tool_state(session, body, client)
 
 
 @router.post("/jog/release", response_model=ProgramView)

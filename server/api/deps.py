@@ -12,6 +12,8 @@ from shared.wire.strict_json import StrictJSONError, loads_strict
 
 CLIENT_HEADER = "X-Teleprog-Client"
 TOKEN_HEADER = "X-Teleprog-Token"
+MAX_HEADER_CHARS = 200
+"""The longest caller name or token taken (a longer one is refused, 422)."""
 
 
 # The two dependencies below are ``async``: they only read the request, and FastAPI runs a
@@ -25,8 +27,8 @@ async def get_session(request: Request) -> Session:
 
 
 async def get_client(
-    x_teleprog_client: Annotated[str | None, Header(max_length=200, description="the caller's name (a label others see)")] = None,
-    x_teleprog_token: Annotated[str | None, Header(max_length=200, description="the control token POST /api/control/request returned")] = None,
+    x_teleprog_client: Annotated[str | None, Header(max_length=MAX_HEADER_CHARS, description="the caller's name (a label others see)")] = None,
+    x_teleprog_token: Annotated[str | None, Header(max_length=MAX_HEADER_CHARS, description="the control token POST /api/control/request returned")] = None,
 ) -> Caller:
     """The caller: the name from ``X-Teleprog-Client`` (none: the page) and the control token from
     ``X-Teleprog-Token`` (none: it holds no control)."""
