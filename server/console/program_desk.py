@@ -53,7 +53,7 @@ from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program, parse_statement
 from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
-from shared.motion.plan_check import plan_or_refuse
+from shared.motion.prefix_planner import PrefixPlanner
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import Generated, JogMode, ProgramGenerator, RobotSample
 
@@ -118,6 +118,7 @@ class ProgramDesk:
         self._declined: list[ConsoleLine] = []  # console lines the operator took out
         self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
         self._durations: tuple[tuple, list[float | None]] | None = None  # (key, durations)
+        self._planner: tuple[bytes, PrefixPlanner] | None = None  # (start joints, its planner)
 
     # -- reading -----------------------------------------------------------------------------
     @property
@@ -155,14 +156,23 @@ class ProgramDesk:
             durations: list[float | None] = [None] * len(statements)
             if statements and not start.unknown:
                 try:
-                    plan = plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start.q)
+                    plan = self._prefix_planner(start.q).plan(statements)
                 except TeleprogError as exc:
+                    self._planner = None
                     log.info("no durations: the program cannot be planned (%s)", exc)
                 else:
                     for i, segment in enumerate(plan.segments):
                         durations[i] = None if is_task(statements[i]) else float(segment.duration)
             self._durations = (key, durations)
             return durations
+
+    def _prefix_planner(self, q_start: np.ndarray) -> PrefixPlanner:
+        """The planner of durations from ``q_start``: it re-plans a changed program only from its
+        first changed statement (a generated statement added while driving: one statement)."""
+        key = q_start.tobytes()
+        if self._planner is None or self._planner[0] != key:
+            self._planner = (key, PrefixPlanner(self._ctx.robot, self._ctx.cell, q_start))
+        return self._planner[1]
 
     def confirmed_range(self) -> tuple[int, int] | None:
         """The range previewed to its end without warnings, while its statements are unchanged."""

@@ -141,6 +141,11 @@ class Interpreter:
         qa = self.robot.as_q(q)
         self._state = replace(self._state, q=qa.copy(), world_T_tcp=self.frames.world_T_tcp(self.robot, qa), unknown=None)
 
+    def restore(self, state: InterpreterState) -> None:
+        """Plan on from ``state``, one this interpreter reported before (``state`` after some
+        statement): the next statement is planned as it was then."""
+        self._state = state
+
     # -- planning -----------------------------------------------------------------------------
     def plan_next(self, statement: Statement) -> Segment:
         """Plan ``statement`` from the current state and advance the state to its end.

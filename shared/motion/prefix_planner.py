@@ -1,0 +1,78 @@
+"""Planning a program that changes near its end, from its first changed statement on.
+
+The console shows every statement's planned duration and plans again whenever the program
+changes. While the operator drives, the program changes at its end: a generated statement is
+added, or the last one replaced as its stroke goes on. Planning is sequential - a statement's
+segment depends only on the interpreter's state before it (joints, speed, mode, what a task left
+unknown) - so keeping that state for every statement of the last plan lets the next version be
+planned from the first statement that differs, with the result ``plan_program`` gives from the
+start (``tests/motion/test_prefix_planner.py``). Appending to an n-statement program costs one
+statement's planning instead of n.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+
+from shared.cells.cell import Cell
+from shared.errors import InputError, TeleprogError
+from shared.language.statements import Statement
+from shared.motion.frames import CellFrames
+from shared.motion.interpreter import Interpreter, InterpreterState, Plan
+from shared.motion.refusal import PlanRefused
+from shared.motion.segment import Segment
+from shared.robots.model import Robot
+
+log = logging.getLogger(__name__)
+
+
+class PrefixPlanner:
+    """``plan_program(statements, robot, cell, start_q)`` for successive versions of a program,
+    re-planning only from the first statement that changed since the last call."""
+
+    def __init__(self, robot: Robot, cell: Cell, start_q: Sequence[float] | np.ndarray) -> None:
+        if cell.robot.name != robot.name:
+            raise InputError(f"cell {cell.name!r} holds robot {cell.robot.name!r}, not {robot.name!r}")
+        self._interp = Interpreter(robot, start_q, CellFrames.from_cell(cell), None, cell.features, None)
+        self._statements: list[Statement] = []  # the last version planned
+        self._segments: list[Segment] = []  # its segments up to its first refusal
+        self._states: list[InterpreterState] = [self._interp.state]  # the state before each segment, and after the last
+
+    def plan(self, statements: Sequence[Statement]) -> Plan:
+        """Every statement planned in order, stopping at the first refusal, as ``plan_program``.
+        A numerical failure of the planner (an overflow, a NaN reaching an index) is refused as
+        ``InputError`` naming it, as ``plan_or_refuse`` does."""
+        statements = list(statements)
+        same = 0
+        for old, new in zip(self._statements, statements):
+            if old is not new and old != new:
+                break
+            same += 1
+        keep = min(same, len(self._segments))
+        del self._segments[keep:]
+        del self._states[keep + 1:]
+        self._statements = statements[:keep]
+        self._interp.restore(self._states[keep])
+        refusal: PlanRefused | None = None
+        for statement in statements[keep:]:
+            try:
+                with np.errstate(all="ignore"):
+                    segment = self._interp.plan_next(statement)
+            except PlanRefused as exc:
+                refusal = exc
+                break
+            except TeleprogError:
+                raise
+            except (ArithmeticError, ValueError, IndexError, np.linalg.LinAlgError) as exc:
+                log.warning("planning statement %d failed: %r", len(self._segments) + 1, exc)
+                raise InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}") from None
+            self._segments.append(segment)
+            self._states.append(self._interp.state)
+            self._statements.append(statement)
+        durations = np.array([s.duration for s in self._segments])
+        starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]]) if self._segments else np.zeros(0)
+        end = self._states[-1]
+        return Plan(tuple(self._segments), self._states[0].q.copy(), end.q.copy(), refusal, starts, end.after_task)
