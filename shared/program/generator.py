@@ -397,6 +397,8 @@ class ProgramGenerator:
         the open segment closes first (its statement is in the old frame, and returned), and the
         program state is re-expressed in the new one. Needs ``world_T_base`` (and
         ``world_T_work`` for WORK)."""
+        if frame is self.settings.frame:  # the usual case, once per tool jog: nothing to check
+            return []
         settings = dataclasses.replace(self.settings, frame=frame)  # checks the name
         if settings.frame is self.settings.frame:
             return []

@@ -104,6 +104,9 @@ class ContactModel:
             atom.text: self._compile(atom.predicate, atom.args) for atom in space.atoms
         }
         self._plans: dict[tuple[tuple[str, ...], tuple[str, ...]], _Plan] = {}
+        self._kept: dict[tuple[tuple[str, ...], tuple[str, ...]], _Kept] = {}  # the last measurement per key
+        self._reach = {k: float(np.max(np.linalg.norm(corners[..., :3], axis=-1))) for k, corners in self._local.items()}
+        """Farthest corner from its individual's frame origin (m), per set of local corners."""
         self.pairs_checked = 0
         """Face pairs measured so far (the work state recognition has done)."""
 
@@ -149,39 +152,54 @@ class ContactModel:
         return tuple(clauses)
 
     # -- evaluation -----------------------------------------------------------------------------------
-    def _world_faces(self, state: CellState) -> dict[str, np.ndarray]:
-        out = dict(self._fixed)
+    def forget(self) -> None:
+        """Measure afresh on the next :meth:`evaluate` (no kept truth)."""
+        self._kept.clear()
+
+    def _placements(self, state: CellState) -> dict[str, tuple[np.ndarray, str]]:
+        """Each movable individual present in ``state``: its frame in the world and the key of
+        its local corners (the hand's open or closed faces)."""
+        out: dict[str, tuple[np.ndarray, str]] = {}
         for name, kind in self._kind_of.items():
-            if name in out:
+            if name in self._fixed:
                 continue
             if name in self._object_of:
                 obj = self._object_of[name]
-                if obj not in state.world_T_objects:
-                    continue
-                world_T = np.asarray(state.world_T_objects[obj], dtype=float)
-                local = self._local[kind]
+                if obj in state.world_T_objects:
+                    out[name] = (np.asarray(state.world_T_objects[obj], dtype=float), kind)
             elif f"{kind}/open" in self._local:  # the hand, at the tool centre point
-                world_T = state.world_T_tcp
-                local = self._local[f"{kind}/closed" if state.gripper_closed else f"{kind}/open"]
-            else:
-                continue
-            out[name] = np.einsum("ij,fkj->fki", world_T, local)[..., :3]
+                out[name] = (np.asarray(state.world_T_tcp, dtype=float), f"{kind}/closed" if state.gripper_closed else f"{kind}/open")
         return out
 
     def evaluate(self, state: CellState, atoms: Iterable[str] | None = None) -> dict[str, bool]:
-        """The truth of ``atoms`` (all of the task space's when None) in ``state``."""
+        """The truth of ``atoms`` (all of the task space's when None) in ``state``.
+
+        Exact, and measured only when it could have changed: the last measurement of the same
+        atoms keeps its smallest distance from any face-pair block's minimum gap to the contact
+        tolerance (the margin); a face's points move by at most ``|dR|_F r + |dt|`` when its
+        individual's frame moves by ``(dR, dt)`` (``r``: its farthest corner), a gap by at most
+        the two faces' moves together, so while twice the largest move since then stays under
+        the margin no block can cross the tolerance and the kept truth is the truth."""
         wanted = tuple(self._conditions) if atoms is None else tuple(dict.fromkeys(atoms))
-        faces = self._world_faces(state)
-        present = tuple(name for name in self._kind_of if name in faces)
+        placed = self._placements(state)
+        present = tuple(name for name in self._kind_of if name in self._fixed or name in placed)
         key = (wanted, present)
+        kept = self._kept.get(key)
+        if kept is not None and kept.holds_for(placed, self._reach):
+            return dict(kept.truth)
         plan = self._plans.get(key)
         if plan is None:
             plan = self._plans[key] = self._plan(wanted, present)
+        margin = np.inf
         if plan.left.size:
-            stacked = np.concatenate([faces[name] for name in present])
+            faces = [self._fixed[name] if name in self._fixed else
+                     np.einsum("ij,fkj->fki", placed[name][0], self._local[placed[name][1]])[..., :3] for name in present]
+            stacked = np.concatenate(faces)
             gaps = quad_pair_distances(stacked[plan.left], stacked[plan.right])
             self.pairs_checked += int(gaps.size)
-            touch_block = np.minimum.reduceat(gaps, plan.block_starts) <= self.tolerance
+            block_gap = np.minimum.reduceat(gaps, plan.block_starts)
+            touch_block = block_gap <= self.tolerance
+            margin = float(np.min(np.abs(block_gap - self.tolerance)))
         else:
             touch_block = np.zeros(0, dtype=bool)
         truth = dict.fromkeys(wanted, True)
@@ -189,6 +207,7 @@ class ContactModel:
             touching = bool(touch_block[lo:hi].any()) if hi > lo else False
             if touching != holds:
                 truth[atom] = False
+        self._kept[key] = _Kept({name: (world_T.copy(), local) for name, (world_T, local) in placed.items()}, margin, dict(truth))
         return truth
 
     def _plan(self, wanted: tuple[str, ...], present: tuple[str, ...]) -> "_Plan":
@@ -237,3 +256,30 @@ class _Plan:
     right: np.ndarray
     block_starts: np.ndarray  # the first pair of each pair of individuals (no block is empty)
     spans: tuple[tuple[str, bool, int, int], ...]  # atom, holds, first block, end
+
+
+@dataclass(frozen=True)
+class _Kept:
+    """The last measurement of one set of atoms: where the movable individuals were, the margin
+    of every face-pair block from the contact tolerance (m), and the truth found."""
+
+    placed: dict[str, tuple[np.ndarray, str]]
+    margin: float
+    truth: dict[str, bool]
+
+    def holds_for(self, placed: dict[str, tuple[np.ndarray, str]], reach: dict[str, float]) -> bool:
+        """Is the kept truth still the truth with the individuals ``placed`` so (see
+        :meth:`ContactModel.evaluate`)?"""
+        if placed.keys() != self.placed.keys():
+            return False
+        largest = 0.0
+        for name, (world_T, local) in placed.items():
+            then, then_local = self.placed[name]
+            if local != then_local:
+                return False
+            d = world_T[:3] - then[:3]
+            move = float(np.sqrt(np.dot(d[:, :3].ravel(), d[:, :3].ravel()))) * reach[local] + float(np.sqrt(np.dot(d[:, 3], d[:, 3])))
+            if not move < np.inf:  # a NaN or infinite frame: measure
+                return False
+            largest = max(largest, move)
+        return 2.0 * largest < self.margin

@@ -74,7 +74,9 @@ def loads_strict(data: str | bytes | bytearray) -> Any:
             data = bytes(data).decode("utf-8")
         except UnicodeDecodeError as exc:
             raise StrictJSONError(f"not UTF-8 text: byte {exc.start}") from None
-    if _depth(data) > MAX_DEPTH:
+    # nesting can be no deeper than the count of opening brackets: the character walk only
+    # for texts with more than MAX_DEPTH of them (a jog's body has one)
+    if data.count("[") + data.count("{") > MAX_DEPTH and _depth(data) > MAX_DEPTH:
         raise StrictJSONError(f"nested deeper than {MAX_DEPTH} levels")
     try:
         return json.loads(

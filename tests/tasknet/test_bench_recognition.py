@@ -27,7 +27,9 @@ def test_bench_recognition_json_small_run() -> None:
         assert 0 < doc[part]["median"] <= doc[part]["p99"]
     # the context restriction of §3.5.3: most samples ask for fewer atoms than the task space has
     assert doc["atoms_checked"]["median"] < doc["atoms_checked"]["all"] == 7
-    assert 0 < doc["pairs_checked"]["median"] < doc["pairs_checked"]["all"]
+    assert 0 < doc["pairs_checked"]["mean"] < doc["pairs_checked"]["all"]
+    # and most samples keep the last truth: no face moved far enough to cross the tolerance
+    assert 0 < doc["samples_measured"] < doc["samples"] / 2
     assert doc["recognition_rate_hz"]["median"] > 60
 
 
