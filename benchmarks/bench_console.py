@@ -7,6 +7,8 @@ Three measurements (issue 7, item 11):
   generation, and the fan-out of events to the scene's listeners; 2,000 events of a dragging
   motion at 100 Hz with generation on. The comparison is the bare kinematics of the same jog
   (``shared.robots.jog.jog_tool_to``), so the ratio shows what the rest of the pipeline adds.
+  The same work's CPU time per event is also read back to back and with the events 10 ms apart,
+  as a drag spaces them: on a shared virtual machine a pause makes the next event's work slower.
 * **end to end**: a running console (``teleprog up --no-robot``); each event is an HTTP jog call,
   and the latency runs until the session's event for it arrives on ``/api/events``: the same
   fan-out that redraws the viser scene (the browser's own rendering is not included).
@@ -47,6 +49,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 
+SPACED_GAP_S = 0.01
+SPACED_EVENTS = 300
+"""The pipeline's CPU time per event is also measured back to back and with events this far apart."""
+
+
 def drag_goals(session, n: int, rate_hz: float = 100.0, speed: float = 0.05) -> list[np.ndarray]:
     """Tool goals of an operator dragging the gizmo: a slow circle of 40 mm radius in the work
     plane around the start pose, ``speed`` m/s, one goal per event."""
@@ -84,6 +91,18 @@ def pipeline(events: int) -> dict:
         t0 = time.perf_counter()
         session.arm.jog_tool_to(goal, frame="world", constraint="xy", motion="translate")
         times[k] = time.perf_counter() - t0
+    # the same work's CPU time with the events back to back, then spaced as a drag spaces them
+    # (10 ms apart): how much a pause costs the next event on this machine (caches, clocks)
+    spaced = {}
+    for gap_s in (0.0, SPACED_GAP_S):
+        cpu = np.empty(SPACED_EVENTS)
+        for k, goal in enumerate(goals[:SPACED_EVENTS]):
+            if gap_s:
+                time.sleep(gap_s)
+            c0 = time.thread_time()
+            session.arm.jog_tool_to(goal, frame="world", constraint="xy", motion="translate")
+            cpu[k] = time.thread_time() - c0
+        spaced["back_to_back" if gap_s == 0.0 else "spaced"] = 1e3 * float(cpu[20:].mean())
     session.arm.release()
     statements = len(session.program.view().entries) - 1  # the trailing empty statement
 
@@ -101,6 +120,7 @@ def pipeline(events: int) -> dict:
         "pipeline_ms": {"mean": 1e3 * times.mean(), "p50": 1e3 * np.percentile(times, 50), "p95": 1e3 * np.percentile(times, 95)},
         "updates_per_s": 1.0 / times.mean(),
         "bare_jog_ms": {"mean": 1e3 * bare.mean(), "p95": 1e3 * np.percentile(bare, 95)},
+        "cpu_ms_per_event": {**spaced, "gap_ms": 1e3 * SPACED_GAP_S, "events": SPACED_EVENTS},
         "ratio_bare_over_pipeline": bare.mean() / times.mean(),
         "listener_calls": fanned,
         "statements_generated": statements,
@@ -603,6 +623,9 @@ def main_with(args: argparse.Namespace) -> int:
         print(f"pipeline: {p['pipeline_ms']['mean']:.2f} ms mean, {p['pipeline_ms']['p95']:.2f} ms p95 per event "
               f"= {p['updates_per_s']:.0f} updates/s (goal 30); bare jog {p['bare_jog_ms']['mean']:.2f} ms "
               f"(ratio {p['ratio_bare_over_pipeline']:.2f}x); {p['statements_generated']} statements generated")
+        c = p["cpu_ms_per_event"]
+        print(f"pipeline CPU per event: {c['back_to_back']:.2f} ms back to back, {c['spaced']:.2f} ms with events "
+              f"{c['gap_ms']:.0f} ms apart")
         for key, what in (("end_to_end", "no robot"), ("end_to_end_robot", "robot on a 200 ms link")):
             if key in out:
                 e = out[key]["latency_ms"]
