@@ -58,6 +58,7 @@ from shared.language.statements import (
 )
 from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArgKind, TaskSpec, resolve_name
+from shared.robots.ik import ik_target, positions_tool_only
 from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import LIMIT_TOLERANCE, Robot
 from shared.spatial import invert, rpy_to_matrix
@@ -166,7 +167,7 @@ class _Checker:
         self.q: np.ndarray | None = q_start
         self.world_T_base = cell.world_T_base if cell is not None else np.eye(4)
         self.flange_T_tcp = cell.flange_T_tcp if cell is not None else np.eye(4)
-        self.position_only = robot.description.ik == "rover"  # positions its tool point only
+        self.position_only = positions_tool_only(robot)
         self.holding: str | None = None
         if cell is not None:
             held = [o.name for o in cell.objects if o.held]
@@ -327,9 +328,7 @@ class _Checker:
         """The IK solution nearest the running joint vector (what the planner picks), or None."""
         base_T_tool = invert(self.world_T_base) @ world_T_tcp @ invert(self.flange_T_tcp)
         try:
-            if self.position_only:
-                return solve_ik_nearest(self.robot, position=base_T_tool[:3, 3], q_seed=self.q, respect_limits=respect_limits)
-            return solve_ik_nearest(self.robot, base_T_tool, self.q, respect_limits=respect_limits)
+            return solve_ik_nearest(self.robot, q_seed=self.q, respect_limits=respect_limits, **ik_target(self.robot, base_T_tool))
         except TeleprogError as exc:  # a solver that cannot take this target at all
             log.debug("IK refused a target: %s", exc)
             return None

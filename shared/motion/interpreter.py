@@ -55,10 +55,11 @@ from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_n
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArmEnd, resolve_name
 from shared.motion.frames import CellFrames
 from shared.motion.limits import MotionLimits, default_limits
-from shared.motion.paths import JointPath, NodePath, ToolLine, build_tool_path, hermite, position_only, solve_nearest
+from shared.motion.paths import JointPath, NodePath, ToolLine, build_tool_path, hermite, solve_nearest
 from shared.motion.profile import Trapezoid, evaluate_trapezoids
 from shared.motion.refusal import PlanRefused, RefusalReason
 from shared.motion.segment import Samples, Segment, SegmentKind
+from shared.robots.ik import positions_tool_only
 from shared.robots.model import LIMIT_TOLERANCE, Robot
 from shared.spatial import rpy_to_matrix
 
@@ -297,7 +298,7 @@ class Interpreter:
 
     def _plan_tool(self, st: Draw | Rotate | Moves, state: InterpreterState, index: int) -> Segment:
         robot = self.robot
-        if position_only(robot):
+        if positions_tool_only(robot):
             if isinstance(st, (Rotate, Moves)):
                 raise PlanRefused(RefusalReason.UNSUPPORTED, f"robot {robot.name!r} places its tool point only; it cannot {st.kind}")
             if np.linalg.norm(self.frames.tool_T_tcp[:3, 3]) > STILL:
@@ -308,7 +309,7 @@ class Interpreter:
         rates = self._rates(st, state)
         line = ToolLine(state.world_T_tcp, self._goal(st, state))
         length, angle = line.length, line.angle
-        if position_only(robot):
+        if positions_tool_only(robot):
             angle = 0.0
         q0 = state.q
         if length <= STILL and angle <= STILL:

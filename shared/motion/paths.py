@@ -23,7 +23,7 @@ import numpy as np
 
 from shared.motion.frames import CellFrames
 from shared.motion.refusal import PlanRefused, RefusalReason
-from shared.robots.ik import solve_ik
+from shared.robots.ik import ik_target, positions_tool_only, solve_ik
 from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import Robot
 from shared.spatial import exp_so3, log_so3
@@ -220,24 +220,16 @@ class ToolLine:
         return out
 
 
-def position_only(robot: Robot) -> bool:
-    """Robots whose inverse kinematics places the tool point only (no orientation)."""
-    return robot.description.ik == "rover"
-
-
 def solve_nearest(robot: Robot, frames: CellFrames, world_T_tcp: np.ndarray, q_near: np.ndarray, at: float) -> np.ndarray:
     """The IK solution nearest ``q_near`` within the joint ranges, or a refusal saying why not."""
     base_T_tool = frames.base_T_tool(world_T_tcp)
-    if position_only(robot):
-        kwargs = {"position": base_T_tool[:3, 3]}
-    else:
-        kwargs = {"base_T_tool": base_T_tool}
-    best = solve_ik_nearest(robot, q_seed=q_near, **kwargs)
+    target = ik_target(robot, base_T_tool)
+    best = solve_ik_nearest(robot, q_seed=q_near, **target)
     if best is not None:
         return best
     where = 1e3 * world_T_tcp[:3, 3]
     place = f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm in WORLD ({100 * at:.1f} % of the line)"
-    free = solve_ik(robot, q_near=q_near, respect_limits=False, **kwargs)
+    free = solve_ik(robot, q_near=q_near, respect_limits=False, **target)
     if free:
         joint, bound = _first_outside(robot, _nearest_unwrapped(free, q_near))
         raise PlanRefused(
@@ -269,7 +261,7 @@ def _tool_errors(robot: Robot, frames: CellFrames, line: ToolLine, s: np.ndarray
     pos_err = np.empty(k)
     ang_err = np.empty(k)
     ideal_p = line.positions(s)
-    check_angle = not position_only(robot)
+    check_angle = not positions_tool_only(robot)
     for i in range(k):
         actual = frames.world_T_tcp(robot, q[i])
         pos_err[i] = np.linalg.norm(actual[:3, 3] - ideal_p[i])
@@ -286,8 +278,7 @@ def _explain_limit(robot: Robot, frames: CellFrames, line: ToolLine, s: float, q
     """Before refusing a path as a jump: if the arm's own branch goes on just outside a joint's
     range, the honest reason is that joint's limit; raise that instead."""
     base_T_tool = frames.base_T_tool(line.pose(s))
-    kwargs = {"position": base_T_tool[:3, 3]} if position_only(robot) else {"base_T_tool": base_T_tool}
-    free = solve_ik(robot, q_near=q_prev, respect_limits=False, **kwargs)
+    free = solve_ik(robot, q_near=q_prev, respect_limits=False, **ik_target(robot, base_T_tool))
     if not free:
         return
     q = _nearest_unwrapped(free, q_prev)

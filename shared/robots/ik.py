@@ -88,6 +88,18 @@ def distinct_branches(solutions: list[np.ndarray]) -> list[tuple[np.ndarray, int
     return list(zip(firsts, counts))
 
 
+def positions_tool_only(robot: Robot) -> bool:
+    """Does ``robot``'s inverse kinematics place the tool point only, with no orientation (the
+    rover's arm)? Every caller that chooses between a pose and a position asks this."""
+    return robot.description.ik == "rover"
+
+
+def ik_target(robot: Robot, base_T_tool: np.ndarray) -> dict[str, np.ndarray]:
+    """The keyword arguments of ``solve_ik`` / ``solve_ik_nearest`` for the tool pose
+    ``base_T_tool``: the whole pose, or its position for robots that place the tool point only."""
+    return {"position": base_T_tool[:3, 3]} if positions_tool_only(robot) else {"base_T_tool": base_T_tool}
+
+
 def solve_ik(
     robot: Robot,
     base_T_tool: np.ndarray | None = None,

@@ -17,6 +17,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from shared.errors import InputError, UnknownNameError
+from shared.robots.ik import ik_target, positions_tool_only
 from shared.robots.ik_kernels import solve_ik_nearest
 from shared.robots.model import Robot
 from shared.spatial import exp_so3, invert, log_so3
@@ -111,9 +112,9 @@ def jog_joint(robot: Robot, q: np.ndarray, joint: int, delta: float) -> JogResul
 
 def _solve_step(robot: Robot, q: np.ndarray, world_T_tcp_target: np.ndarray, frames: JogFrames) -> JogResult:
     base_T_tool = invert(frames.world_T_base) @ world_T_tcp_target @ invert(frames.tool_T_tcp)
-    position_only = robot.dof < 6
+    position_only = positions_tool_only(robot)
     # only the solution nearest the current joints matters (the arm never jumps branch)
-    target = {"position": base_T_tool[:3, 3]} if position_only else {"base_T_tool": base_T_tool}
+    target = ik_target(robot, base_T_tool)
     best = solve_ik_nearest(robot, q_seed=q, **target)
     if best is None:
         if solve_ik_nearest(robot, q_seed=q, respect_limits=False, **target) is not None:
@@ -158,7 +159,7 @@ def jog_tool(
     if motion == "translate":
         target[:3, 3] += d_world
     else:
-        if robot.dof < 6:
+        if positions_tool_only(robot):
             return JogResult(q, moved=False, blocked="unreachable", message=f"{robot.name!r} controls the tool position only")
         target[:3, :3] = exp_so3(d_world) @ now[:3, :3]
     if not np.any(d_world):

@@ -210,3 +210,20 @@ def test_bad_inputs_are_refused_as_by_solve_ik() -> None:
     broken[2] = DHJoint(a=0.0, alpha=broken[2].alpha, d=broken[2].d)
     with pytest.raises(InputError, match="a2"):
         solve_ik_nearest(make_robot(broken), target, np.zeros(6))
+
+
+@pytest.mark.parametrize("name, position_only", [("puma562", False), ("rover", True)])
+def test_one_rule_says_what_a_robots_ik_takes(name: str, position_only: bool) -> None:
+    """Jogging, path planning and program checks all hand the IK what ``ik_target`` gives: the
+    whole tool pose, or only its position for an arm that places its tool point only."""
+    from shared.robots.ik import ik_target, positions_tool_only
+
+    robot = load_robot(name)
+    q = np.clip(np.full(robot.dof, 0.3), robot.lower, robot.upper)
+    base_T_tool = robot.fk(q)
+    assert positions_tool_only(robot) is position_only
+    target = ik_target(robot, base_T_tool)
+    assert set(target) == ({"position"} if position_only else {"base_T_tool"})
+    best = solve_ik_nearest(robot, q_seed=q, **target)
+    assert best is not None
+    np.testing.assert_allclose(robot.fk(best)[:3, 3], base_T_tool[:3, 3], atol=1e-6)

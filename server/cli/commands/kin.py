@@ -29,7 +29,7 @@ def _cmd_kin_fk(args: argparse.Namespace) -> int:
 
 
 def _cmd_kin_ik(args: argparse.Namespace) -> int:
-    from shared.robots.ik import distinct_branches, solve_ik
+    from shared.robots.ik import distinct_branches, positions_tool_only, solve_ik
     from shared.robots.loader import load_robot
     from shared.spatial import pose_to_transform
 
@@ -42,7 +42,7 @@ def _cmd_kin_ik(args: argparse.Namespace) -> int:
         if not args.limit_tolerance >= 0.0:
             raise TeleprogError(f"--limit-tolerance must be zero or more degrees; got {args.limit_tolerance}")
         tolerance = float(np.radians(args.limit_tolerance))
-    if robot.description.ik == "rover" or robot.dof < 6:
+    if positions_tool_only(robot):
         if args.rpy is not None:
             raise TeleprogError(f"robot {robot.name!r} positions its tool point only; drop --rpy")
         solutions = solve_ik(robot, position=xyz, q_near=q_near, respect_limits=not args.ignore_limits, limit_tolerance=tolerance)
