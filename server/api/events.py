@@ -51,24 +51,31 @@ async def events(websocket: WebSocket) -> None:
         snap = session.snapshot().model_dump(mode="json")
         return dumps_finite({"type": "snapshot", **snap})  # strict JSON even if a view held a NaN
 
+    async def watch_receive() -> None:
+        """Read (and ignore) what the client sends, e.g. pings; when it leaves, tell the writer."""
+        try:
+            while True:
+                await websocket.receive_text()
+        except Exception:  # noqa: BLE001 - WebSocketDisconnect, or the connection broke
+            pass
+        finally:
+            queue.put_nowait(None)
+
     unsubscribe = session.subscribe_events(push)
+    receiver: asyncio.Task | None = None
     try:
         await websocket.send_text(snapshot_text())
-        receiver = asyncio.create_task(websocket.receive_text())
+        # one long-lived reader; the writer only awaits the queue (no task and no wait set per
+        # message: at jogging rates that was a good part of the stream's cost)
+        receiver = asyncio.create_task(watch_receive())
         while True:
-            getter = asyncio.create_task(queue.get())
-            done, _ = await asyncio.wait({getter, receiver}, return_when=asyncio.FIRST_COMPLETED)
-            if receiver in done:
-                getter.cancel()
-                exc = receiver.exception()
-                if exc is not None:
-                    break
-                receiver = asyncio.create_task(websocket.receive_text())  # clients may send pings; ignored
-                continue
-            text = getter.result()
+            text = await queue.get()
+            if text is None:
+                break
             if overflow:
                 while not queue.empty():
-                    queue.get_nowait()
+                    if queue.get_nowait() is None:
+                        return
                 overflow = False
                 text = snapshot_text()
             await websocket.send_text(text)
@@ -78,5 +85,5 @@ async def events(websocket: WebSocket) -> None:
         log.debug("events watcher ended: %r", exc)
     finally:
         unsubscribe()
-        if "receiver" in locals() and not receiver.done():
+        if receiver is not None and not receiver.done():
             receiver.cancel()
