@@ -122,6 +122,9 @@ def create_app(
         lifespan=lifespan,
         docs_url=None,
         redoc_url=None,
+        # the console exports no OpenTelemetry; on, FastAPI asks the global providers whether
+        # anyone listens on every request (ignored by FastAPI versions without telemetry)
+        telemetry={"tracing": False, "metrics": False, "logs": False},
     )
 
     add_error_handler(app)
