@@ -16,7 +16,6 @@ routes stay in the OpenAPI document; a failure nobody expected propagates to the
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -30,8 +29,6 @@ from server.console import Caller, Session
 from server.http_errors import teleprog_refusal
 from shared.errors import TeleprogError
 from shared.wire.strict_json import StrictJSONError, loads_strict
-
-log = logging.getLogger(__name__)
 
 Handler = Callable[[Session, Any, Caller], StateOut]
 
@@ -113,4 +110,3 @@ def _replay(body: bytes, receive: Receive) -> Receive:
         return await receive()
 
     return replay
-
