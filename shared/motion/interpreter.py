@@ -341,6 +341,15 @@ class Plan:
     start_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     after_task: str | None = None  # a task whose end pose only the robot knows: q_final is before it
 
+    @classmethod
+    def of(cls, segments: Sequence[Segment], q_start: np.ndarray, end: InterpreterState,
+           refusal: PlanRefused | None) -> "Plan":
+        """The plan of ``segments``, planned in order from ``q_start`` to the interpreter state
+        ``end``, stopped by ``refusal`` (None: every statement planned)."""
+        durations = np.array([s.duration for s in segments])
+        starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]]) if len(segments) else np.zeros(0)
+        return cls(tuple(segments), q_start, end.q.copy(), refusal, starts, end.after_task)
+
     @property
     def ok(self) -> bool:
         return self.refusal is None
@@ -519,6 +528,4 @@ def plan_program(
         except PlanRefused as exc:
             refusal = exc
             break
-    durations = np.array([s.duration for s in segments])
-    starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]]) if segments else np.zeros(0)
-    return Plan(tuple(segments), q_start, interp.state.q.copy(), refusal, starts, interp.state.after_task)
+    return Plan.of(segments, q_start, interp.state, refusal)

@@ -119,6 +119,16 @@ def check_plan(
     return PlanCheck(plan, start, stop, t0, duration, tuple(issues), refusal)
 
 
+PLANNER_FAILURES = (ArithmeticError, ValueError, IndexError, np.linalg.LinAlgError)
+"""What the planner raises when numbers it was given break it (an overflow, a NaN reaching an index)."""
+
+
+def planner_failure(exc: BaseException, what: str) -> InputError:
+    """The refusal for one of ``PLANNER_FAILURES`` raised while planning ``what`` (logged)."""
+    log.warning("planning %s failed: %r", what, exc)
+    return InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}")
+
+
 def plan_or_refuse(statements, robot, cell, start_q: np.ndarray) -> Plan:
     """``plan_program`` from ``start_q``; a numerical failure of the planner on what it was given
     (an overflow, a NaN reaching an index) is refused as ``InputError`` naming it, never raised
@@ -128,6 +138,5 @@ def plan_or_refuse(statements, robot, cell, start_q: np.ndarray) -> Plan:
             return plan_program(list(statements), robot, cell, start_q=start_q)
     except TeleprogError:
         raise
-    except (ArithmeticError, ValueError, IndexError, np.linalg.LinAlgError) as exc:
-        log.warning("planning %d statement(s) failed: %r", len(statements), exc)
-        raise InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}") from None
+    except PLANNER_FAILURES as exc:
+        raise planner_failure(exc, f"{len(statements)} statement(s)") from None

@@ -12,7 +12,6 @@ statement's planning instead of n.
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,11 +21,10 @@ from shared.errors import InputError, TeleprogError
 from shared.language.statements import Statement
 from shared.motion.frames import CellFrames
 from shared.motion.interpreter import Interpreter, InterpreterState, Plan
+from shared.motion.plan_check import PLANNER_FAILURES, planner_failure
 from shared.motion.refusal import PlanRefused
 from shared.motion.segment import Segment
 from shared.robots.model import Robot
-
-log = logging.getLogger(__name__)
 
 
 class PrefixPlanner:
@@ -66,13 +64,9 @@ class PrefixPlanner:
                 break
             except TeleprogError:
                 raise
-            except (ArithmeticError, ValueError, IndexError, np.linalg.LinAlgError) as exc:
-                log.warning("planning statement %d failed: %r", len(self._segments) + 1, exc)
-                raise InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}") from None
+            except PLANNER_FAILURES as exc:
+                raise planner_failure(exc, f"statement {len(self._segments) + 1}") from None
             self._segments.append(segment)
             self._states.append(self._interp.state)
             self._statements.append(statement)
-        durations = np.array([s.duration for s in self._segments])
-        starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]]) if self._segments else np.zeros(0)
-        end = self._states[-1]
-        return Plan(tuple(self._segments), self._states[0].q.copy(), end.q.copy(), refusal, starts, end.after_task)
+        return Plan.of(self._segments, self._states[0].q.copy(), self._states[-1], refusal)

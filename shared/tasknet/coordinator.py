@@ -67,15 +67,19 @@ class TaskCoordinator:
         for act in self.space.actions:
             if not all(a in self.marking for a in act.pre):
                 continue
-            if any(a in self.marking for a in act.post if a not in act.pre):
+            if any(a in self.marking for a in self._added(act)):
                 continue
             out.append(act)
         return out
 
     @staticmethod
-    def _changes(act: GroundAction) -> tuple[str, ...]:
-        added = [a for a in act.post if a not in act.pre]
-        return tuple(dict.fromkeys([*added, *act.delete]))
+    def _added(act: GroundAction) -> tuple[str, ...]:
+        """The atoms ``act`` makes hold that did not have to hold before it."""
+        return tuple(a for a in act.post if a not in act.pre)
+
+    @classmethod
+    def _changes(cls, act: GroundAction) -> tuple[str, ...]:
+        return tuple(dict.fromkeys([*cls._added(act), *act.delete]))
 
     def observe(self, state: CellState, t: float | None = None, statement: int | None = None) -> list[RecognisedAction]:
         """Recognise the actions ``state`` completes; returns them (usually none)."""
@@ -104,7 +108,7 @@ class TaskCoordinator:
         they change (what :meth:`observe` asks the contact model for)."""
         kept = self._at_marking.get(self.marking)
         if kept is None:
-            enabled = tuple((act, tuple(a for a in act.post if a not in act.pre)) for act in self.enabled())
+            enabled = tuple((act, self._added(act)) for act in self.enabled())
             wanted = tuple(dict.fromkeys(a for act, _ in enabled for a in self._changes(act)))
             kept = self._at_marking[self.marking] = (enabled, wanted)
         return kept
