@@ -70,41 +70,22 @@ class Sample:
 
 
 def play_samples(program, cell) -> tuple[list[Sample], object]:
-    """The samples of ``shared.tasknet.playback.recognise_program``'s play (same segments, same
-    0.01 s step, same task steps, the object world changed where it changes it)."""
+    """The samples of ``shared.tasknet.playback.recognise_program``'s play (its own ``play``:
+    same segments, same 0.01 s step, same task steps, the object world changed where it changes it)."""
     from shared.cells.object_world import ObjectWorld
-    from shared.language.statements import TaskCall
     from shared.motion import plan_program
     from shared.motion.frames import CellFrames
-    from shared.motion.segment import SegmentKind
-    from shared.tasknet.playback import SAMPLE_DT_S, TASK_STEPS
+    from shared.tasknet.playback import play
 
     robot = cell.robot
     plan = plan_program(program, robot, cell, None)
     frames = CellFrames.from_cell(cell)
     world = ObjectWorld(cell)
     out: list[Sample] = []
-
-    def take(q: np.ndarray, t: float) -> None:
+    for q, t, _ in play(plan, cell, world):
         arm = np.asarray(frames.world_T_tcp(robot, q), dtype=float)
         out.append(Sample(t, np.array(q, dtype=float), np.array(world.tool_pose(arm), dtype=float), arm, world.held,
                           {k: np.array(v, dtype=float) for k, v in world.poses(arm).items()}))
-
-    for seg, t0 in zip(plan.segments, plan.start_times):
-        if seg.kind is SegmentKind.TASK:
-            if not np.allclose(seg.q_start, seg.q_end):
-                for s in np.linspace(0.0, 1.0, TASK_STEPS):
-                    take(seg.q_start + s * (seg.q_end - seg.q_start), float(t0))
-            st = seg.statement
-            assert isinstance(st, TaskCall)
-            world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(robot, seg.q_end))
-            take(seg.q_end, float(t0))
-            continue
-        if seg.duration <= 0.0:
-            continue
-        ts = np.append(np.arange(t0, t0 + seg.duration, SAMPLE_DT_S), t0 + seg.duration)
-        for t, q in zip(ts, plan.sample(ts).q):
-            take(q, float(t))
     return out, plan
 
 

@@ -11,7 +11,7 @@ robot's ``extract_peg`` lifts.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +19,7 @@ import numpy as np
 from shared.cells.object_world import ObjectWorld
 from shared.language.statements import Statement, TaskCall
 from shared.motion import plan_program
+from shared.motion.interpreter import Plan
 from shared.motion.frames import CellFrames
 from shared.motion.segment import SegmentKind
 from shared.tasknet.contacts import CellState, ContactModel
@@ -43,6 +44,31 @@ class ProgramRecognition:
     """Each planned statement's start time (s) on the play's clock, the clock of ``actions[i].t``."""
 
 
+def play(plan: Plan, cell, world: ObjectWorld, dt: float = SAMPLE_DT_S) -> Iterator[tuple[np.ndarray, float, int]]:
+    """The arm along ``plan`` on ``cell``, every ``dt`` s of the plan's clock and at each
+    statement's end: ``(q, t, statement number)``. A task call that moves the arm is sampled in
+    ``TASK_STEPS`` steps; its effect on ``world`` (a grasp holds, an insertion seats) is applied
+    just before its last sample, so ``world`` read at each sample is the cell at that moment."""
+    robot = cell.robot
+    frames = CellFrames.from_cell(cell)
+    for seg, t0 in zip(plan.segments, plan.start_times):
+        number = seg.index + 1
+        if seg.kind is SegmentKind.TASK:
+            if not np.allclose(seg.q_start, seg.q_end):
+                for s in np.linspace(0.0, 1.0, TASK_STEPS):
+                    yield seg.q_start + s * (seg.q_end - seg.q_start), float(t0), number
+            st = seg.statement
+            assert isinstance(st, TaskCall)
+            world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(robot, seg.q_end))
+            yield seg.q_end, float(t0), number
+            continue
+        if seg.duration <= 0.0:
+            continue
+        ts = np.append(np.arange(t0, t0 + seg.duration, dt), t0 + seg.duration)
+        for t, q in zip(ts, plan.sample(ts).q):
+            yield q, float(t), number
+
+
 def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None,
                       world: ObjectWorld | None = None) -> ProgramRecognition:
     """Play ``program`` on ``cell`` from ``start_q`` (the cell's home pose) with the objects of
@@ -54,29 +80,9 @@ def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, star
     contacts = ContactModel(space, cell)
     coordinator = TaskCoordinator(space, contacts, CellState.of_world(world, frames.world_T_tcp(robot, plan.q_start)))
     samples = 0
-
-    def observe(q: np.ndarray, t: float, number: int) -> None:
-        nonlocal samples
+    for q, t, number in play(plan, cell, world):
         samples += 1
         coordinator.observe(CellState.of_world(world, frames.world_T_tcp(robot, q)), t, number)
-
-    for seg, t0 in zip(plan.segments, plan.start_times):
-        number = seg.index + 1
-        if seg.kind is SegmentKind.TASK:
-            moved = not np.allclose(seg.q_start, seg.q_end)
-            if moved:
-                for s in np.linspace(0.0, 1.0, TASK_STEPS):
-                    observe(seg.q_start + s * (seg.q_end - seg.q_start), float(t0), number)
-            st = seg.statement
-            assert isinstance(st, TaskCall)
-            world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(robot, seg.q_end))
-            observe(seg.q_end, float(t0), number)
-            continue
-        if seg.duration <= 0.0:
-            continue
-        ts = np.append(np.arange(t0, t0 + seg.duration, SAMPLE_DT_S), t0 + seg.duration)
-        for t, q in zip(ts, plan.sample(ts).q):
-            observe(q, float(t), number)
     actions = tuple(coordinator.actions)
     net = generate_task_net(space, coordinator.m0, [a.action for a in actions])
     return ProgramRecognition(

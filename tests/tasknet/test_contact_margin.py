@@ -10,13 +10,12 @@ import numpy as np
 from shared.cells.loader import load_cell
 from shared.cells.object_world import ObjectWorld
 from shared.language.parser import parse_file
-from shared.language.statements import TaskCall
 from shared.motion import plan_program
 from shared.motion.frames import CellFrames
-from shared.motion.segment import SegmentKind
 from shared.paths import ASSETS_DIR
 from shared.spatial import exp_so3
 from shared.tasknet.contacts import CellState, ContactModel
+from shared.tasknet.playback import play
 from shared.tasknet.taskspace import load_task_space
 
 CELL = ASSETS_DIR / "cells" / "peg_in_hole.toml"
@@ -24,26 +23,11 @@ PROGRAM = ASSETS_DIR / "programs" / "peg_transfer.tp"
 
 
 def played_states(cell, dt: float = 0.002) -> list[CellState]:
-    robot, frames = cell.robot, CellFrames.from_cell(cell)
-    plan = plan_program(parse_file(PROGRAM).statements, robot, cell)
+    """The cell's states along the peg transfer's play (``shared.tasknet.playback.play``)."""
+    plan = plan_program(parse_file(PROGRAM).statements, cell.robot, cell)
+    frames = CellFrames.from_cell(cell)
     world = ObjectWorld(cell)
-    states = []
-
-    def take(q: np.ndarray) -> None:
-        arm = np.asarray(frames.world_T_tcp(robot, q), dtype=float)
-        poses = {o.name: np.asarray(o.world_T_object, dtype=float) for o in cell.objects}
-        poses.update({k: np.array(v, dtype=float) for k, v in world.poses(arm).items()})
-        states.append(CellState(np.array(world.tool_pose(arm), dtype=float), world.held is not None, poses))
-
-    for seg, t0 in zip(plan.segments, plan.start_times):
-        if seg.kind is SegmentKind.TASK:
-            assert isinstance(seg.statement, TaskCall)
-            world.apply_task(seg.statement.name, tuple(seg.statement.args), frames.world_T_tcp(robot, seg.q_end))
-            take(seg.q_end)
-        elif seg.duration > 0.0:
-            for q in plan.sample(np.arange(t0, t0 + seg.duration, dt)).q:
-                take(q)
-    return states
+    return [CellState.of_world(world, frames.world_T_tcp(cell.robot, q)) for q, _, _ in play(plan, cell, world, dt)]
 
 
 def jittered(state: CellState, rng: np.random.Generator) -> CellState:
