@@ -23,7 +23,7 @@ from pydantic import BaseModel, ValidationError
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from server.api.arm import jog_joint_state, jog_tool_state
-from server.api.deps import MAX_HEADER_CHARS
+from server.api.deps import CLIENT_HEADER, MAX_HEADER_CHARS, TOKEN_HEADER
 from server.api_models import JogJointIn, JogToolIn, StateOut
 from server.console import Caller, Session
 from server.http_errors import teleprog_refusal
@@ -39,6 +39,8 @@ ROUTES: dict[str, tuple[type[BaseModel], Handler]] = {
 """Path -> (body model, what the route does)."""
 
 _JSON_HEADERS = [(b"content-type", b"application/json")]
+_CLIENT = CLIENT_HEADER.lower().encode("latin-1")  # ASGI gives header names in lower case
+_TOKEN = TOKEN_HEADER.lower().encode("latin-1")
 
 
 class JogLane:
@@ -73,9 +75,9 @@ class JogLane:
         for key, value in scope["headers"]:
             if key == b"content-type" and content_type is None:
                 content_type = value
-            elif key == b"x-teleprog-client" and name is None:
+            elif key == _CLIENT and name is None:
                 name = value.decode("latin-1")
-            elif key == b"x-teleprog-token" and token is None:
+            elif key == _TOKEN and token is None:
                 token = value.decode("latin-1")
         if content_type is None or content_type.split(b";", 1)[0].strip().lower() != b"application/json":
             return False
