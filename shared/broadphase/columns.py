@@ -70,7 +70,10 @@ def _cell(v, origin, inv, n):
 
 @njit(parallel=True, cache=True)
 def _gather_bin(centres, radii, perm, ox, oy, inv, ncx, ncy, rows, key, hist, n_parts):
-    """Bodies in the last frame's order: rows (x, y, z, r), column, one histogram per part."""
+    """Bodies in the last frame's order: rows (x, y, z, r), column, one histogram per part.
+    Column (x, y) of the ``ncx`` by ``ncy`` grid is number ``x * (ncy + 2) + y + 1``: the grid
+    is stored with an empty row of columns on either side in y and an empty column after the
+    last in x, so every body's neighbour columns exist (see ``_test_bodies``)."""
     n = perm.shape[0]
     for t in prange(n_parts):
         h = hist[t]
@@ -83,7 +86,7 @@ def _gather_bin(centres, radii, perm, ox, oy, inv, ncx, ncy, rows, key, hist, n_
             rows[k, 1] = y
             rows[k, 2] = centres[i, 2]
             rows[k, 3] = radii[i]
-            g = _cell(x, ox, inv, ncx) * ncy + _cell(y, oy, inv, ncy)
+            g = _cell(x, ox, inv, ncx) * (ncy + 2) + _cell(y, oy, inv, ncy) + 1
             key[k] = g
             h[g] += 1
 
@@ -262,25 +265,22 @@ def _scan_window(a, xa, ya, za, ra, p, e, zhi, bx, by, bz, br, ids, out, base, c
 
 
 @njit(inline="always", cache=True)
-def _test_sorted_column(a0, a1, g, cx, cy, ncx, ncy, starts, bx, by, bz, br, ids, reach, sort_min,
-                        out, base, cap, k, h_s, h_e):
+def _test_sorted_column(a0, a1, g, ny, starts, bx, by, bz, br, ids, reach, sort_min, out, base, cap, k,
+                        h_s, h_e):
     """Bodies a0..a1-1 of column g, sorted by z, against the rest of g and the half
     neighbourhood: the z window ``|dz| <= reach`` of each sorted neighbour column is followed by
     a pointer that only moves up (the bodies of g come in rising z), unsorted (short)
     neighbour columns are tested whole. ``|dz| <= reach`` is necessary for the filter's
-    ``d^2 <= reach^2``, so nothing the filter would pass is skipped."""
+    ``d^2 <= reach^2``, so nothing the filter would pass is skipped. ``ny``: columns in a row
+    of the padded grid."""
     e_g = starts[g + 1]
-    # up to four neighbour columns: (x, y+1), (x+1, y-1 .. y+1)
-    m = 0
-    if cy + 1 < ncy:
-        h_s[m] = starts[g + 1]
-        h_e[m] = starts[g + 2]
-        m += 1
-    if cx + 1 < ncx:
-        for h in range(g + ncy - 1 if cy > 0 else g + ncy, (g + ncy + 1 if cy + 1 < ncy else g + ncy) + 1):
-            h_s[m] = starts[h]
-            h_e[m] = starts[h + 1]
-            m += 1
+    # the four neighbour columns: (x, y+1), (x+1, y-1 .. y+1), which the padding guarantees
+    h_s[0] = starts[g + 1]
+    h_e[0] = starts[g + 2]
+    for u in range(3):
+        h_s[u + 1] = starts[g + ny - 1 + u]
+        h_e[u + 1] = starts[g + ny + u]
+    m = 4
     for a in range(a0, a1):
         xa = bx[a]
         ya = by[a]
@@ -299,40 +299,29 @@ def _test_sorted_column(a0, a1, g, cx, cy, ncx, ncy, starts, bx, by, bz, br, ids
 
 
 @njit(cache=True)
-def _test_bodies(a0, a1, starts, col, ncx, ncy, bx, by, bz, br, ids, reach, out, base, cap, sort_min, zwin_min):
+def _test_bodies(a0, a1, starts, col, ny, bx, by, bz, br, ids, reach, out, base, cap, sort_min, zwin_min):
     """Pairs whose first body is one of a0..a1-1 and whose second is later in the same column
-    or in the half neighbourhood; returns how many (writes at most cap from out[base])."""
+    or in the half neighbourhood; returns how many (writes at most cap from out[base]).
+    ``ny``: columns in a row of the padded grid, whose empty border columns make the neighbour
+    ranges of every body three loads from ``starts``, without a branch or a division."""
     k = 0
     reach2 = reach * reach
-    g_prev = -1
-    e1 = h0 = h1 = 0
-    cx = cy = 0
     h_s = np.empty(4, dtype=np.int64)
     h_e = np.empty(4, dtype=np.int64)
     a = a0
     while a < a1:
         g = col[a]
         if starts[g + 1] - starts[g] > zwin_min:  # a crowded column, sorted by z: z windows
-            cx = g // ncy
-            cy = g - cx * ncy
             a_end = min(starts[g + 1], a1)
-            k = _test_sorted_column(a, a_end, g, cx, cy, ncx, ncy, starts, bx, by, bz, br, ids, reach,
-                                    sort_min, out, base, cap, k, h_s, h_e)
+            k = _test_sorted_column(a, a_end, g, ny, starts, bx, by, bz, br, ids, reach, sort_min,
+                                    out, base, cap, k, h_s, h_e)
             a = a_end
-            g_prev = -1
             continue
-        if g != g_prev:  # first body of a column: its two neighbour ranges
-            g_prev = g
-            cx = g // ncy
-            cy = g - cx * ncy
-            # the rest of the column and the column (x, y+1) are adjacent in memory ...
-            e1 = starts[g + 2] if cy + 1 < ncy else starts[g + 1]
-            # ... and so are the columns (x+1, y-1 .. y+1)
-            h0 = 0
-            h1 = 0
-            if cx + 1 < ncx:
-                h0 = starts[g + ncy - 1 if cy > 0 else g + ncy]
-                h1 = starts[(g + ncy + 1 if cy + 1 < ncy else g + ncy) + 1]
+        # the rest of the column and the column (x, y+1) are adjacent in memory, and so are the
+        # columns (x+1, y-1 .. y+1)
+        e1 = starts[g + 2]
+        h0 = starts[g + ny - 1]
+        h1 = starts[g + ny + 2]
         if e1 - a - 1 <= BLOCK and h1 - h0 <= BLOCK:  # the common case: one block per range
             xa = bx[a]
             ya = by[a]
@@ -349,6 +338,14 @@ def _test_bodies(a0, a1, starts, col, ncx, ncy, bx, by, bz, br, ids, reach, out,
                     _near_in_wide(bx, by, bz, xa, ya, za, reach2, h0, h1) > 0:
                 k = _test_range(a, a + 1, e1, bx, by, bz, br, ids, out, base, cap, k)
                 k = _test_range(a, h0, h1, bx, by, bz, br, ids, out, base, cap, k)
+        elif e1 - a - 1 <= WIDE and h1 - h0 <= HUGE:  # clustered scenes: a short own range
+            xa = bx[a]
+            ya = by[a]
+            za = bz[a]
+            if _near_in_wide(bx, by, bz, xa, ya, za, reach2, a + 1, e1) + \
+                    _near_in_huge(bx, by, bz, xa, ya, za, reach2, h0, h1) > 0:
+                k = _test_range(a, a + 1, e1, bx, by, bz, br, ids, out, base, cap, k)
+                k = _test_range(a, h0, h1, bx, by, bz, br, ids, out, base, cap, k)
         else:  # block after block
             k = _test_blocks(a, a + 1, e1, bx, by, bz, br, ids, reach2, out, base, cap, k)
             k = _test_blocks(a, h0, h1, bx, by, bz, br, ids, reach2, out, base, cap, k)
@@ -357,10 +354,10 @@ def _test_bodies(a0, a1, starts, col, ncx, ncy, bx, by, bz, br, ids, reach, out,
 
 
 @njit(parallel=True, cache=True)
-def _test_all(n_chunks, starts, col, ncx, ncy, bx, by, bz, br, ids, reach, out, cap, found, sort_min, zwin_min):
+def _test_all(n_chunks, starts, col, ny, bx, by, bz, br, ids, reach, out, cap, found, sort_min, zwin_min):
     n = col.shape[0]
     for q in prange(n_chunks):
-        found[q] = _test_bodies(n * q // n_chunks, n * (q + 1) // n_chunks, starts, col, ncx, ncy,
+        found[q] = _test_bodies(n * q // n_chunks, n * (q + 1) // n_chunks, starts, col, ny,
                                 bx, by, bz, br, ids, reach, out, q * cap, cap, sort_min, zwin_min)
 
 
@@ -409,7 +406,7 @@ class ColumnEngine:
         n_parts = n_threads * PARTS_PER_THREAD if parallel else 1
         ncx = max(1, int(np.ceil((hi[0] - lo[0]) / cell)))
         ncy = max(1, int(np.ceil((hi[1] - lo[1]) / cell)))
-        n_columns = ncx * ncy
+        n_columns = (ncx + 1) * (ncy + 2)  # with the empty border (see _gather_bin)
         perm = self._perm
         if perm is None or perm.shape[0] != n:
             perm = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
@@ -428,7 +425,7 @@ class ColumnEngine:
 
     def _run(self, centres, radii, perm, lo, cell, rmax_pad, n, parallel, n_threads, n_parts, ncx, ncy,
              col_type, key, hist, rows) -> np.ndarray:
-        n_columns = ncx * ncy
+        n_columns = (ncx + 1) * (ncy + 2)
         kernel_for(_gather_bin, n)(centres, radii, perm, float(lo[0]), float(lo[1]), 1.0 / cell, ncx, ncy,
                                    rows, key, hist, n_parts)
         starts = self._buf("starts", (n_columns + 1,), np.int64)
@@ -448,7 +445,7 @@ class ColumnEngine:
         while True:
             out = self._buf("out", (n_chunks * cap, 2), np.int64)
             found = np.zeros(n_chunks, dtype=np.int64)
-            kernel_for(_test_all, n)(n_chunks, starts, col, ncx, ncy, bx, by, bz, br, ids, 2.0 * rmax_pad,
+            kernel_for(_test_all, n)(n_chunks, starts, col, ncy + 2, bx, by, bz, br, ids, 2.0 * rmax_pad,
                                      out, cap, found, self.sort_min, self.zwin_min)
             if found.max() <= cap:
                 break
