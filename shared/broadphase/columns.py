@@ -307,57 +307,67 @@ def _test_sorted_column(a0, a1, g, ny, starts, bx, by, bz, br, ids, reach, sort_
     return k
 
 
+@njit(inline="always", cache=True)
+def _near_in_range(bx, by, bz, xa, ya, za, reach2, b0, b1):
+    """How many of the bodies b0..b1-1 pass the filter: one fixed-width loop for the short
+    ranges of most bodies (the width chosen by the range's length), blocks beyond."""
+    n = b1 - b0
+    if n <= BLOCK:
+        return _near_in_block(bx, by, bz, xa, ya, za, reach2, b0, b1)
+    if n <= WIDE:
+        return _near_in_wide(bx, by, bz, xa, ya, za, reach2, b0, b1)
+    m = 0
+    c0 = b0
+    while c0 < b1:
+        m += _near_in_huge(bx, by, bz, xa, ya, za, reach2, c0, b1)
+        c0 += HUGE
+    return m
+
+
 @njit(cache=True)
 def _test_bodies(a0, a1, starts, col, ny, bx, by, bz, br, ids, reach, out, base, cap, sort_min, zwin_min):
     """Pairs whose first body is one of a0..a1-1 and whose second is later in the same column
     or in the half neighbourhood; returns how many (writes at most cap from out[base]).
     ``ny``: columns in a row of the padded grid, whose empty border columns make the neighbour
-    ranges of every body three loads from ``starts``, without a branch or a division."""
+    ranges of every body three loads from ``starts``, without a branch or a division.
+
+    Three passes over the bodies: the filter on the first range of each (the rest of its
+    column and the column (x, y+1), adjacent in memory), the filter on its second range (the
+    columns (x+1, y-1 .. y+1), adjacent too), then the exact predicate for the bodies with a
+    hit. One pass doing both filters compiled to code 2x slower than the two passes together
+    (measured, 100k bodies: 2.7 against 1.3 ms). Bodies of crowded columns (sorted by z) are
+    marked in the first pass and take the z windows of ``_test_sorted_column`` in the last."""
     k = 0
     reach2 = reach * reach
     h_s = np.empty(4, dtype=np.int64)
     h_e = np.empty(4, dtype=np.int64)
+    hits = np.empty(a1 - a0, dtype=np.int32)
+    for a in range(a0, a1):
+        g = col[a]
+        if starts[g + 1] - starts[g] > zwin_min:
+            hits[a - a0] = -1
+        else:
+            hits[a - a0] = _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, a + 1, starts[g + 2])
+    for a in range(a0, a1):
+        if hits[a - a0] >= 0:
+            g = col[a]
+            hits[a - a0] += _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, starts[g + ny - 1],
+                                           starts[g + ny + 2])
     a = a0
     while a < a1:
+        m = hits[a - a0]
+        if m == 0:
+            a += 1
+            continue
         g = col[a]
-        if starts[g + 1] - starts[g] > zwin_min:  # a crowded column, sorted by z: z windows
+        if m < 0:  # a crowded column, sorted by z: z windows
             a_end = min(starts[g + 1], a1)
             k = _test_sorted_column(a, a_end, g, ny, starts, bx, by, bz, br, ids, reach, sort_min,
                                     out, base, cap, k, h_s, h_e)
             a = a_end
             continue
-        # the rest of the column and the column (x, y+1) are adjacent in memory, and so are the
-        # columns (x+1, y-1 .. y+1)
-        e1 = starts[g + 2]
-        h0 = starts[g + ny - 1]
-        h1 = starts[g + ny + 2]
-        if e1 - a - 1 <= BLOCK and h1 - h0 <= BLOCK:  # the common case: one block per range
-            xa = bx[a]
-            ya = by[a]
-            za = bz[a]
-            if _near_in_block(bx, by, bz, xa, ya, za, reach2, a + 1, e1) + \
-                    _near_in_block(bx, by, bz, xa, ya, za, reach2, h0, h1) > 0:
-                k = _test_range(a, a + 1, e1, bx, by, bz, br, ids, out, base, cap, k)
-                k = _test_range(a, h0, h1, bx, by, bz, br, ids, out, base, cap, k)
-        elif e1 - a - 1 <= WIDE and h1 - h0 <= WIDE:  # one wide block per range
-            xa = bx[a]
-            ya = by[a]
-            za = bz[a]
-            if _near_in_wide(bx, by, bz, xa, ya, za, reach2, a + 1, e1) + \
-                    _near_in_wide(bx, by, bz, xa, ya, za, reach2, h0, h1) > 0:
-                k = _test_range(a, a + 1, e1, bx, by, bz, br, ids, out, base, cap, k)
-                k = _test_range(a, h0, h1, bx, by, bz, br, ids, out, base, cap, k)
-        elif e1 - a - 1 <= WIDE and h1 - h0 <= HUGE:  # clustered scenes: a short own range
-            xa = bx[a]
-            ya = by[a]
-            za = bz[a]
-            if _near_in_wide(bx, by, bz, xa, ya, za, reach2, a + 1, e1) + \
-                    _near_in_huge(bx, by, bz, xa, ya, za, reach2, h0, h1) > 0:
-                k = _test_range(a, a + 1, e1, bx, by, bz, br, ids, out, base, cap, k)
-                k = _test_range(a, h0, h1, bx, by, bz, br, ids, out, base, cap, k)
-        else:  # block after block
-            k = _test_blocks(a, a + 1, e1, bx, by, bz, br, ids, reach2, out, base, cap, k)
-            k = _test_blocks(a, h0, h1, bx, by, bz, br, ids, reach2, out, base, cap, k)
+        k = _test_range(a, a + 1, starts[g + 2], bx, by, bz, br, ids, out, base, cap, k)
+        k = _test_range(a, starts[g + ny - 1], starts[g + ny + 2], bx, by, bz, br, ids, out, base, cap, k)
         a += 1
     return k
 
