@@ -21,7 +21,7 @@ column its box overlaps writes about 2.25 entries a body. Here:
 * temporal coherence (the role of the thesis's AVL trees): the bodies are kept in the last
   frame's column order. Each frame they are binned in that order, so the counting sort by column
   moves memory nearly in sequence and the sorted copies stay close to last frame's;
-* crowded columns (clustered scenes at 1M: 13 bodies a column on average, up to 40) are kept
+* crowded columns (more than SORT_MIN bodies, beyond the clustered scenes measured) are kept
   sorted by z, the order carried into the next frame like the column order, and their bodies
   test only the z window ``|dz| <= reach`` of each neighbour column through pointers that only
   move up, instead of filtering every body of the neighbourhood;
@@ -52,13 +52,16 @@ WIDE = 16
 HUGE = 32
 #: how many bodies ahead the gathering asks for a centre (measured: 8-64 alike)
 PREFETCH_AHEAD = 8
-#: columns holding more bodies than this are kept sorted by z (clustered scenes) ...
-SORT_MIN = 16
+#: columns holding more bodies than this are kept sorted by z (heavy clusters) ...
+SORT_MIN = 64
 #: ... and the bodies of a column holding more than this many (at least SORT_MIN) test only the
 #: z window |dz| <= reach of each sorted neighbour column, followed by a rising pointer,
-#: instead of filtering every body there (measured, 1 thread, gaussian 1M: 313 -> 254 ms a
-#: frame; at 100k the columns hold at most ~20 bodies and it neither pays nor costs)
-ZWIN_MIN = 16
+#: instead of filtering every body there. A guard against columns crowded far beyond the
+#: scenes measured: since the filter vectorises, filtering whole columns of up to 64 bodies is
+#: faster than sorting and windowing them (Gaussian 1M, 2 threads, columns of 13 bodies on
+#: average and up to 41: 68 ms a frame with both thresholds at 16, 47 ms at 32-64 or with
+#: neither; at 100k no difference)
+ZWIN_MIN = 64
 
 
 @njit(inline="always", cache=True)

@@ -171,7 +171,7 @@ def test_heavily_clustered_scene_z_windows_match_brute_force(parallel, threshold
     if parallel:
         monkeypatch.setattr(grid, "PARALLEL_MIN", 500)
         monkeypatch.setattr(columns, "PARALLEL_MIN", 500)
-    scene = make_scene("gaussian", n=4000, size=60.0, speed=0.5, radius_spread=0.4, seed=5, clusters=3)
+    scene = make_scene("gaussian", n=6000, size=60.0, speed=0.5, radius_spread=0.4, seed=5, clusters=2)
     det = make_detector("ugrid")
     det._engine = ColumnEngine(*thresholds)
     sort_min = det._engine.sort_min
