@@ -106,16 +106,19 @@ def _gather_bin(centres, radii, perm, ox, oy, inv, ncx, ncy, rows, key, hist, n_
 @njit(cache=True)
 def _offsets(hist, starts):
     """Exclusive prefix over (column, part): ``hist[t, g]`` becomes part t's first slot in
-    column g; ``starts`` (n_columns + 1) the column starts."""
+    column g; ``starts`` (n_columns + 1) the column starts. Returns the largest column."""
     n_threads, n_columns = hist.shape
     acc = 0
+    largest = 0
     for g in range(n_columns):
         starts[g] = acc
         for t in range(n_threads):
             v = hist[t, g]
             hist[t, g] = acc
             acc += v
+        largest = max(largest, acc - starts[g])
     starts[n_columns] = acc
+    return largest
 
 
 @njit(parallel=True, cache=True)
@@ -459,7 +462,7 @@ class ColumnEngine:
         kernel_for(_gather_bin, n)(centres, radii, perm, float(lo[0]), float(lo[1]), 1.0 / cell, ncx, ncy,
                                    rows, key, hist, n_parts)
         starts = self._buf("starts", (n_columns + 1,), np.int64)
-        _offsets(hist, starts)
+        largest = _offsets(hist, starts)
         bx = self._buf("bx", (n + HUGE,), np.float64)
         by = self._buf("by", (n + HUGE,), np.float64)
         bz = self._buf("bz", (n + HUGE,), np.float64)
@@ -470,7 +473,8 @@ class ColumnEngine:
         ids = np.empty(n, dtype=perm.dtype)  # becomes next frame's order: not a shared buffer
         first_end = self._buf("first_end", (n,), starts.dtype)
         kernel_for(_scatter, n)(rows, perm, key, hist, n_parts, starts, bx, by, bz, br, ids, col, first_end)
-        kernel_for(_sort_columns, n)(starts, n_columns, n_parts, bx, by, bz, br, ids, self.sort_min)
+        if largest > self.sort_min:  # only heavy clusters have columns to keep in z order
+            kernel_for(_sort_columns, n)(starts, n_columns, n_parts, bx, by, bz, br, ids, self.sort_min)
         n_chunks = n_threads * CHUNKS_PER_THREAD if parallel else 1
         cap = max(64, (3 * self._expected_pairs) // (2 * n_chunks) + 64)
         while True:
