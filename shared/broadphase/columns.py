@@ -365,8 +365,15 @@ def _test_bodies(a0, a1, starts, col, first_end, ny, bx, by, bz, br, ids, reach,
         if starts[g + 1] - starts[g] > zwin_min:
             hits[a - a0] = -1
         else:
-            hits[a - a0] += _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, starts[g + ny - 1],
-                                           starts[g + ny + 2])
+            # one fixed width for every body: a width chosen per body (8, 16 or 32 by the
+            # range's length) cost a mispredicted branch on clustered scenes (interleaved runs,
+            # 100k, one thread: 3.38 -> 2.87 ms Gaussian, 1.97 -> 1.86 ms uniform)
+            b0 = starts[g + ny - 1]
+            b1 = starts[g + ny + 2]
+            m = _near_in_huge(bx, by, bz, bx[a], by[a], bz[a], reach2, b0, b1)
+            if b1 - b0 > HUGE:
+                m += _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, b0 + HUGE, b1)
+            hits[a - a0] += m
     a = a0
     while a < a1:
         m = hits[a - a0]
