@@ -358,8 +358,11 @@ def _test_bodies(a0, a1, starts, col, first_end, ny, bx, by, bz, br, ids, reach,
         hits[a - a0] = _near_in_block(bx, by, bz, bx[a], by[a], bz[a], reach2, a + 1, first_end[a])
     for a in range(a0, a1):
         e = first_end[a]
-        if e - a - 1 > BLOCK:
-            hits[a - a0] += _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, a + 1 + BLOCK, e)
+        if e - a - 1 > BLOCK:  # the same fixed width as the second range (below)
+            m = _near_in_huge(bx, by, bz, bx[a], by[a], bz[a], reach2, a + 1 + BLOCK, e)
+            if e - a - 1 > BLOCK + HUGE:
+                m += _near_in_range(bx, by, bz, bx[a], by[a], bz[a], reach2, a + 1 + BLOCK + HUGE, e)
+            hits[a - a0] += m
     for a in range(a0, a1):
         g = col[a]
         if starts[g + 1] - starts[g] > zwin_min:
