@@ -52,20 +52,46 @@ def program(ui: ConsolePage) -> dict:
     return ui.session()["program"]
 
 
+def texts(ui: ConsolePage) -> list[str]:
+    """The session's statements as text (the trailing empty one left out)."""
+    return [e["text"] for e in program(ui)["entries"][:-1]]
+
+
+def drawn_texts(ui: ConsolePage) -> list[str]:
+    """Every line of the page's program list, read in one go."""
+    found = ui.page.locator("[data-program-list] [data-stmt-index]")
+    return found.evaluate_all("els => els.map(e => e.textContent)")
+
+
+def upload(ui: ConsolePage, *lines: str) -> None:
+    """Send a program file holding ``lines`` through the page's upload button and wait until
+    the session holds them and the page draws them (each line's text on its line)."""
+    with ui.page.expect_file_chooser() as chooser:
+        ui.click("Load program file")
+    text = "".join(line + "\n" for line in lines) or "# nothing\n"
+    chooser.value.set_files(files=[{"name": "editor.tp", "mimeType": "text/plain", "buffer": text.encode()}])
+    wait_for(lambda: texts(ui) == list(lines), what="program loaded")
+
+    def drawn() -> bool:
+        shown = drawn_texts(ui)
+        return len(shown) == len(lines) + 1 and all(want in got for want, got in zip(lines, shown))
+
+    wait_for(drawn, timeout=PAGE_S, what="the page draws the loaded program")
+
+
 def load(ui: ConsolePage, *lines: str) -> None:
-    """Load a program file holding ``lines`` through the page's upload button."""
+    """Load a program file holding ``lines`` through the page's upload button. When the
+    session already holds the same program (the tests reuse one), an empty one goes first:
+    otherwise the waits would pass on the old program and the page could replace its list
+    under the test's next click."""
     if ui.session()["preview"]["active"]:
         ui.tab("Preview")
         ui.click("End")
         wait_for(lambda: not ui.session()["preview"]["active"], what="preview ended")
     ui.tab("Program")
-    with ui.page.expect_file_chooser() as chooser:
-        ui.click("Load program file")
-    text = "".join(line + "\n" for line in lines) or "# nothing\n"
-    chooser.value.set_files(files=[{"name": "editor.tp", "mimeType": "text/plain", "buffer": text.encode()}])
-    wait_for(lambda: [e["text"] for e in program(ui)["entries"][:-1]] == list(lines), what="program loaded")
-    drawn = ui.page.locator("[data-program-list] [data-stmt-index]")
-    wait_for(lambda: drawn.count() == len(lines) + 1, timeout=PAGE_S, what="the page draws the loaded program")
+    if lines and texts(ui) == list(lines):
+        upload(ui)
+    upload(ui, *lines)
 
 
 def line(ui: ConsolePage, index: int):
