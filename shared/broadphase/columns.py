@@ -254,19 +254,6 @@ def _near_in_huge(bx, by, bz, xa, ya, za, reach2, b0, b1):
 
 
 @njit(inline="always", cache=True)
-def _test_blocks(a, b0, b1, bx, by, bz, br, ids, reach2, out, base, cap, k):
-    xa = bx[a]
-    ya = by[a]
-    za = bz[a]
-    c0 = b0
-    while c0 < b1:
-        if _near_in_huge(bx, by, bz, xa, ya, za, reach2, c0, b1) > 0:
-            k = _test_range(a, c0, min(c0 + HUGE, b1), bx, by, bz, br, ids, out, base, cap, k)
-        c0 += HUGE
-    return k
-
-
-@njit(inline="always", cache=True)
 def _advance(p, e, bz, zlo):
     while p < e and bz[p] < zlo:
         p += 1
@@ -469,7 +456,8 @@ class ColumnEngine:
 
     def _run(self, centres, radii, perm, lo, cell, rmax_pad, n, parallel, n_threads, n_parts, ncx, ncy,
              col_type, key, hist, rows) -> np.ndarray:
-        n_columns = (ncx + 1) * (ncy + 2)
+        n_columns = hist.shape[1]
+        ny = ncy + 2  # columns in a row of the padded grid (see _gather_bin)
         kernel_for(_gather_bin, n)(centres, radii, perm, float(lo[0]), float(lo[1]), 1.0 / cell, ncx, ncy,
                                    rows, key, hist, n_parts)
         starts = self._buf("starts", (n_columns + 1,), np.int64)
@@ -491,7 +479,7 @@ class ColumnEngine:
         while True:
             out = self._buf("out", (n_chunks * cap, 2), np.int64)
             found = np.zeros(n_chunks, dtype=np.int64)
-            kernel_for(_test_all, n)(n_chunks, starts, col, first_end, ncy + 2, bx, by, bz, br, ids, 2.0 * rmax_pad,
+            kernel_for(_test_all, n)(n_chunks, starts, col, first_end, ny, bx, by, bz, br, ids, 2.0 * rmax_pad,
                                      out, cap, found, self.sort_min, self.zwin_min)
             if found.max() <= cap:
                 break
