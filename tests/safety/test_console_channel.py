@@ -24,7 +24,7 @@ from server.robot_client import RobotClient, RobotRestarted
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.statements import Event, Move, SetSpeed, Speed, SpeedUnit
 from shared.wire.messages import StatementState
-from support import ServerProcess
+from support import ServerProcess, wait_for
 
 CELL = load_cell(DEFAULT_CELL)
 
@@ -111,6 +111,9 @@ def test_slow_listeners_never_silence_the_console_or_hold_up_stop(robot) -> None
                 busy.release()
             await client.abort(timeout=5)
             await client.wait_final(numbers, timeout=20)
+            # the listeners run in arrival order, so the frames queued behind the reports of the
+            # 3 s (0.5 s each) come after them: wait for one before the client closes its queue
+            await asyncio.to_thread(wait_for, lambda: frames, 10.0, 0.05, "a telemetry frame delivered after the lock")
             return ack, stop_s, halted, health, client.heartbeats_heard - heard, frames
 
     ack, stop_s, halted, health, heartbeats, frames = asyncio.run(run())
