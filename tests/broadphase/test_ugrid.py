@@ -183,3 +183,61 @@ def test_heavily_clustered_scene_z_windows_match_brute_force(parallel, threshold
         crowded = max(crowded, int(np.unique(cols, axis=0, return_counts=True)[1].max()))
         scene.step()
     assert crowded > max(sort_min, HUGE)  # the crowded path really ran
+
+
+@pytest.mark.parametrize("extent", [20.0, 600.0, 3.0e6, 2.0**70])
+def test_float32_filter_reach_covers_every_pair_within_reach(extent):
+    # the filter compares float32 copies of the centres with a widened reach (filter_frame);
+    # pairs at exactly the reach, anywhere in the box and in any direction, must all pass it,
+    # computed as the kernel does (float32 differences, squares and sums)
+    rng = np.random.default_rng(11)
+    reach = 2.0
+    lo = np.array([-0.3, 0.1, -0.2]) * extent
+    hi = lo + extent
+    origin, scale, freach2 = columns.filter_frame(lo, hi, reach)
+    assert freach2.dtype == np.float32
+    m = 200_000
+    a = lo + rng.uniform(0.0, 1.0, (m, 3)) * (hi - lo)
+    a[: m // 4] = np.where(rng.random((m // 4, 3)) < 0.5, lo, hi)  # corners: the largest copies
+    d = rng.normal(size=(m, 3))
+    d *= reach / np.linalg.norm(d, axis=1)[:, None]
+    b = a + d
+    inside = np.all((b >= lo) & (b <= hi), axis=1)
+    assert inside.sum() > m // 4
+    fa = ((a[inside] - origin) * scale).astype(np.float32)
+    fb = ((b[inside] - origin) * scale).astype(np.float32)
+    fd = fb - fa
+    d2 = fd[:, 0] * fd[:, 0] + fd[:, 1] * fd[:, 1] + fd[:, 2] * fd[:, 2]
+    assert d2.dtype == np.float32
+    assert np.all(d2 <= freach2)
+    # and it stays a filter: pairs at 3x the reach are rejected unless float32 cannot tell
+    if extent * 2.0**-20 < reach:
+        far = ((a[inside] + 3.0 * d[inside] - origin) * scale).astype(np.float32) - fa
+        assert np.mean(far[:, 0] ** 2 + far[:, 1] ** 2 + far[:, 2] ** 2 > freach2) > 0.99
+
+
+@pytest.mark.parametrize("method", GRIDS)
+@pytest.mark.parametrize("offset", [3.0e6, 2.0**70])
+def test_touching_and_nearly_touching_pairs_far_from_the_origin(method, offset):
+    # groups spread over `offset`, so the float32 copies resolve only about offset * 2^-24: pairs
+    # at exactly the contact distance, a hair beyond it and a hair inside, which the float32
+    # filter cannot tell apart and the float64 predicate must. Equal radii: the contact distance
+    # is the filter's whole reach. Groups of 20 bodies: each fills one (wide) column, filtered
+    # rather than taking the z windows of crowded columns
+    rng = np.random.default_rng(5)
+    pts = []
+    for g in range(6):
+        base = offset * g / 5.0 * np.array([1.0, 1.0 / 3.0, -1.0 / 7.0])
+        for k in range(10):
+            p = base + rng.uniform(0, 40, 3)
+            u = rng.normal(size=3)
+            u /= np.linalg.norm(u)
+            gap = 2.0 * (1.0 + (0.0, 1e-9, -1e-9)[k % 3])
+            pts += [p, p + gap * u]
+    c = np.array(pts)
+    r = np.ones(len(c))
+    ref = make_detector("brute").update(c, r)
+    assert len(ref) >= 20  # the inside ones at least (exactly touching may round either way)
+    det = make_detector(method)
+    for _ in range(3):
+        assert np.array_equal(det.update(c, r), ref)
