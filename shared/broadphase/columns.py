@@ -123,11 +123,13 @@ def _offsets(hist, starts):
 
 
 @njit(parallel=True, cache=True)
-def _scatter(rows, perm, key, hist, n_parts, starts, bx, by, bz, br, ids, col, first_end, fx, fy, fz, origin,
-             scale):
-    """Stable counting sort into column order (structure of arrays, body ids, columns, and the
-    end of each body's first range of candidates: the start of column (x, y+2)), with the
-    float32 copies of the centres the filter reads: ``(c - origin) * scale``."""
+def _scatter(rows, perm, key, hist, n_parts, starts, src, ids, col, first_end, fx, fy, fz, origin, scale):
+    """Stable counting sort into column order: the float32 copies of the centres the filter
+    reads, ``(c - origin) * scale``, the body's row in ``rows`` (where the exact predicate reads
+    its float64 centre and radius: nearly in sequence, since this frame's column order is
+    nearly the last one's), body ids, columns, and the end of each body's first range of
+    candidates (the start of column (x, y+2)). Float64 copies in column order as well cost more
+    to write than the exact predicate, run for about one body in six, saves reading them."""
     n = perm.shape[0]
     for t in prange(n_parts):
         pos = hist[t]
@@ -135,10 +137,7 @@ def _scatter(rows, perm, key, hist, n_parts, starts, bx, by, bz, br, ids, col, f
             g = key[k]
             p = pos[g]
             pos[g] = p + 1
-            bx[p] = rows[k, 0]
-            by[p] = rows[k, 1]
-            bz[p] = rows[k, 2]
-            br[p] = rows[k, 3]
+            src[p] = k
             fx[p] = np.float32((rows[k, 0] - origin[0]) * scale)
             fy[p] = np.float32((rows[k, 1] - origin[1]) * scale)
             fz[p] = np.float32((rows[k, 2] - origin[2]) * scale)
@@ -148,7 +147,7 @@ def _scatter(rows, perm, key, hist, n_parts, starts, bx, by, bz, br, ids, col, f
 
 
 @njit(parallel=True, cache=True)
-def _sort_columns(starts, n_columns, n_parts, bx, by, bz, br, ids, fx, fy, fz, sort_min):
+def _sort_columns(starts, n_columns, n_parts, rows, src, ids, fx, fy, fz, sort_min):
     """Insertion sort by z of every column holding more than ``sort_min`` bodies. The order is
     kept into the next frame (``ids`` becomes its body order), so the columns arrive nearly
     sorted and the sort costs about one comparison a body."""
@@ -159,31 +158,23 @@ def _sort_columns(starts, n_columns, n_parts, bx, by, bz, br, ids, fx, fy, fz, s
             if e - s <= sort_min:
                 continue
             for i in range(s + 1, e):
-                z = bz[i]
-                if bz[i - 1] <= z:
+                z = rows[src[i], 2]
+                if rows[src[i - 1], 2] <= z:
                     continue
-                x = bx[i]
-                y = by[i]
-                r = br[i]
+                w = src[i]
                 d = ids[i]
                 f0 = fx[i]
                 f1 = fy[i]
                 f2 = fz[i]
                 j = i
-                while j > s and bz[j - 1] > z:
-                    bx[j] = bx[j - 1]
-                    by[j] = by[j - 1]
-                    bz[j] = bz[j - 1]
-                    br[j] = br[j - 1]
+                while j > s and rows[src[j - 1], 2] > z:
+                    src[j] = src[j - 1]
                     ids[j] = ids[j - 1]
                     fx[j] = fx[j - 1]
                     fy[j] = fy[j - 1]
                     fz[j] = fz[j - 1]
                     j -= 1
-                bx[j] = x
-                by[j] = y
-                bz[j] = z
-                br[j] = r
+                src[j] = w
                 ids[j] = d
                 fx[j] = f0
                 fy[j] = f1
@@ -225,14 +216,16 @@ def _near_in_block(bx, by, bz, xa, ya, za, reach2, b0, b1):
 
 
 @njit(inline="always", cache=True)
-def _test_range(a, b0, b1, bx, by, bz, br, ids, out, base, cap, k):
-    """The exact predicate between body a and bodies b0..b1-1."""
-    xa = bx[a]
-    ya = by[a]
-    za = bz[a]
-    ra = br[a]
+def _test_range(a, b0, b1, rows, src, ids, out, base, cap, k):
+    """The exact predicate between body a and bodies b0..b1-1 (float64 rows through ``src``)."""
+    i = src[a]
+    xa = rows[i, 0]
+    ya = rows[i, 1]
+    za = rows[i, 2]
+    ra = rows[i, 3]
     for b in range(b0, b1):
-        if sphere_overlap(xa, ya, za, ra, bx[b], by[b], bz[b], br[b]):
+        j = src[b]
+        if sphere_overlap(xa, ya, za, ra, rows[j, 0], rows[j, 1], rows[j, 2], rows[j, 3]):
             k = _emit(out, base, cap, k, ids[a], ids[b])
     return k
 
@@ -268,23 +261,24 @@ def _near_in_huge(bx, by, bz, xa, ya, za, reach2, b0, b1):
 
 
 @njit(inline="always", cache=True)
-def _advance(p, e, bz, zlo):
-    while p < e and bz[p] < zlo:
+def _advance(p, e, rows, src, zlo):
+    while p < e and rows[src[p], 2] < zlo:
         p += 1
     return p
 
 
 @njit(inline="always", cache=True)
-def _scan_window(a, xa, ya, za, ra, p, e, zhi, bx, by, bz, br, ids, out, base, cap, k):
-    while p < e and bz[p] <= zhi:
-        if sphere_overlap(xa, ya, za, ra, bx[p], by[p], bz[p], br[p]):
+def _scan_window(a, xa, ya, za, ra, p, e, zhi, rows, src, ids, out, base, cap, k):
+    while p < e and rows[src[p], 2] <= zhi:
+        j = src[p]
+        if sphere_overlap(xa, ya, za, ra, rows[j, 0], rows[j, 1], rows[j, 2], rows[j, 3]):
             k = _emit(out, base, cap, k, ids[a], ids[p])
         p += 1
     return k
 
 
 @njit(inline="always", cache=True)
-def _test_sorted_column(a0, a1, g, ny, starts, bx, by, bz, br, ids, reach, sort_min, out, base, cap, k,
+def _test_sorted_column(a0, a1, g, ny, starts, rows, src, ids, reach, sort_min, out, base, cap, k,
                         h_s, h_e):
     """Bodies a0..a1-1 of column g, sorted by z, against the rest of g and the half
     neighbourhood: the z window ``|dz| <= reach`` of each sorted neighbour column is followed by
@@ -301,19 +295,20 @@ def _test_sorted_column(a0, a1, g, ny, starts, bx, by, bz, br, ids, reach, sort_
         h_e[u + 1] = starts[g + ny + u]
     m = 4
     for a in range(a0, a1):
-        xa = bx[a]
-        ya = by[a]
-        za = bz[a]
-        ra = br[a]
+        i = src[a]
+        xa = rows[i, 0]
+        ya = rows[i, 1]
+        za = rows[i, 2]
+        ra = rows[i, 3]
         zlo = za - reach
         zhi = za + reach
-        k = _scan_window(a, xa, ya, za, ra, a + 1, e_g, zhi, bx, by, bz, br, ids, out, base, cap, k)
+        k = _scan_window(a, xa, ya, za, ra, a + 1, e_g, zhi, rows, src, ids, out, base, cap, k)
         for u in range(m):
             if h_e[u] - h_s[u] > sort_min:
-                h_s[u] = _advance(h_s[u], h_e[u], bz, zlo)
-                k = _scan_window(a, xa, ya, za, ra, h_s[u], h_e[u], zhi, bx, by, bz, br, ids, out, base, cap, k)
+                h_s[u] = _advance(h_s[u], h_e[u], rows, src, zlo)
+                k = _scan_window(a, xa, ya, za, ra, h_s[u], h_e[u], zhi, rows, src, ids, out, base, cap, k)
             else:
-                k = _test_range(a, h_s[u], h_e[u], bx, by, bz, br, ids, out, base, cap, k)
+                k = _test_range(a, h_s[u], h_e[u], rows, src, ids, out, base, cap, k)
     return k
 
 
@@ -335,7 +330,7 @@ def _near_in_range(bx, by, bz, xa, ya, za, reach2, b0, b1):
 
 
 @njit(cache=True)
-def _test_bodies(a0, a1, starts, col, first_end, ny, bx, by, bz, br, ids, reach, out, base, cap, sort_min, zwin_min,
+def _test_bodies(a0, a1, starts, col, first_end, ny, rows, src, ids, reach, out, base, cap, sort_min, zwin_min,
                  fx, fy, fz, freach2):
     """Pairs whose first body is one of a0..a1-1 and whose second is later in the same column
     or in the half neighbourhood; returns how many (writes at most cap from out[base]).
@@ -388,23 +383,23 @@ def _test_bodies(a0, a1, starts, col, first_end, ny, bx, by, bz, br, ids, reach,
         g = col[a]
         if m < 0:  # a crowded column, sorted by z: z windows
             a_end = min(starts[g + 1], a1)
-            k = _test_sorted_column(a, a_end, g, ny, starts, bx, by, bz, br, ids, reach, sort_min,
+            k = _test_sorted_column(a, a_end, g, ny, starts, rows, src, ids, reach, sort_min,
                                     out, base, cap, k, h_s, h_e)
             a = a_end
             continue
-        k = _test_range(a, a + 1, first_end[a], bx, by, bz, br, ids, out, base, cap, k)
-        k = _test_range(a, starts[g + ny - 1], starts[g + ny + 2], bx, by, bz, br, ids, out, base, cap, k)
+        k = _test_range(a, a + 1, first_end[a], rows, src, ids, out, base, cap, k)
+        k = _test_range(a, starts[g + ny - 1], starts[g + ny + 2], rows, src, ids, out, base, cap, k)
         a += 1
     return k
 
 
 @njit(parallel=True, cache=True)
-def _test_all(n_chunks, starts, col, first_end, ny, bx, by, bz, br, ids, reach, out, cap, found, sort_min, zwin_min,
+def _test_all(n_chunks, starts, col, first_end, ny, rows, src, ids, reach, out, cap, found, sort_min, zwin_min,
               fx, fy, fz, freach2):
     n = col.shape[0]
     for q in prange(n_chunks):
         found[q] = _test_bodies(n * q // n_chunks, n * (q + 1) // n_chunks, starts, col, first_end, ny,
-                                bx, by, bz, br, ids, reach, out, q * cap, cap, sort_min, zwin_min,
+                                rows, src, ids, reach, out, q * cap, cap, sort_min, zwin_min,
                                 fx, fy, fz, freach2)
 
 
@@ -507,31 +502,28 @@ class ColumnEngine:
                                    rows, key, hist, n_parts)
         starts = self._buf("starts", (n_columns + 1,), np.int64)
         largest = _offsets(hist, starts)
-        bx = self._buf("bx", (n + HUGE,), np.float64)
-        by = self._buf("by", (n + HUGE,), np.float64)
-        bz = self._buf("bz", (n + HUGE,), np.float64)
         fx = self._buf("fx", (n + HUGE,), np.float32)
         fy = self._buf("fy", (n + HUGE,), np.float32)
         fz = self._buf("fz", (n + HUGE,), np.float32)
-        for b in (bx, by, bz, fx, fy, fz):
+        for b in (fx, fy, fz):
             b[n:] = np.nan  # the padding read by the fixed-width filter never counts
         reach = 2.0 * rmax_pad
         origin, scale, freach2 = filter_frame(lo, hi, reach)
-        br = self._buf("br", (n,), np.float64)
+        src = self._buf("src", (n,), perm.dtype)
         col = self._buf("col", (n,), col_type)
         ids = np.empty(n, dtype=perm.dtype)  # becomes next frame's order: not a shared buffer
-        first_end = self._buf("first_end", (n,), starts.dtype)
-        kernel_for(_scatter, n)(rows, perm, key, hist, n_parts, starts, bx, by, bz, br, ids, col, first_end,
+        first_end = self._buf("first_end", (n,), perm.dtype)
+        kernel_for(_scatter, n)(rows, perm, key, hist, n_parts, starts, src, ids, col, first_end,
                                 fx, fy, fz, origin, scale)
         if largest > self.sort_min:  # only heavy clusters have columns to keep in z order
-            kernel_for(_sort_columns, n)(starts, n_columns, n_parts, bx, by, bz, br, ids, fx, fy, fz,
+            kernel_for(_sort_columns, n)(starts, n_columns, n_parts, rows, src, ids, fx, fy, fz,
                                          self.sort_min)
         n_chunks = n_threads * CHUNKS_PER_THREAD if parallel else 1
         cap = max(64, (3 * self._expected_pairs) // (2 * n_chunks) + 64)
         while True:
             out = self._buf("out", (n_chunks * cap, 2), np.int64)
             found = np.zeros(n_chunks, dtype=np.int64)
-            kernel_for(_test_all, n)(n_chunks, starts, col, first_end, ny, bx, by, bz, br, ids, reach,
+            kernel_for(_test_all, n)(n_chunks, starts, col, first_end, ny, rows, src, ids, reach,
                                      out, cap, found, self.sort_min, self.zwin_min, fx, fy, fz, freach2)
             if found.max() <= cap:
                 break
