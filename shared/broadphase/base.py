@@ -16,7 +16,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 
 import numpy as np
-from numba import njit
+from numba import get_num_threads, njit, prange
 
 from shared.errors import InputError
 
@@ -33,35 +33,96 @@ def sphere_overlap(xi, yi, zi, ri, xj, yj, zj, rj) -> bool:
     return dx * dx + dy * dy + dz * dz <= s * s
 
 
-@njit(cache=True)
-def frame_stats(c, r):
-    """One pass over a frame: (finite and radii >= 0, lower corner (3,), upper corner (3,),
-    largest |coordinate|, largest radius). Replaces a dozen numpy reductions per frame; the
-    running extremes are scalars and the checks accumulate without branches (30% faster than
-    updating small arrays in the loop)."""
+#: lanes of the running extremes in ``frame_stats``: 8 bodies of (x, y, z), so lane u holds
+#: coordinate u % 3 (and for the radii, any 24 of them)
+_LANES = 24
+#: from this many bodies the frame's pass runs on every thread (measured on 2, caches flushed
+#: as between benchmark frames: 100k bodies 0.14 ms against 0.27 for the former one-value-per-
+#: coordinate loop, 1M 1.0 against 2.65 ms)
+STATS_PARALLEL_MIN = 50_000
+
+
+@njit(cache=True)  # not inlined: inlined twice into one loop it no longer vectorised (2x slower)
+def _extremes(flat, j0, j1, lo, hi, bad):
+    """Running minimum and maximum of ``flat[j0:j1]`` in _LANES independent lanes (element j
+    in lane ``j % _LANES``; ``j0`` a multiple of _LANES), and a detector of non-finite values:
+    ``v - v`` is NaN exactly for NaN and +-inf, so a lane of ``bad`` stays 0 only while its
+    values are finite. A loop of constant inner length that LLVM vectorises; one running value
+    per coordinate is a chain of dependent operations (2x slower). Unsigned indices: a signed
+    one makes numba's wraparound compile the loads to gathers."""
+    lanes = np.uint64(_LANES)
+    nb = (j1 - j0) // lanes
+    for b in range(nb):
+        o = j0 + b * lanes
+        for u in range(_LANES):
+            v = flat[o + np.uint64(u)]
+            lo[u] = v if v < lo[u] else lo[u]
+            hi[u] = v if v > hi[u] else hi[u]
+            bad[u] += v - v
+    for j in range(j0 + nb * lanes, j1):
+        u = j % lanes
+        v = flat[j]
+        lo[u] = v if v < lo[u] else lo[u]
+        hi[u] = v if v > hi[u] else hi[u]
+        bad[u] += v - v
+
+
+@njit(parallel=True, cache=True)
+def _frame_lanes(c, r, parts):
+    """The lanes of ``_extremes`` for the centres and the radii, ``parts`` body ranges (each
+    starting at a multiple of 8 bodies, so that lane u keeps coordinate u % 3)."""
     n = c.shape[0]
-    inf = np.inf
-    lo0 = lo1 = lo2 = inf
-    hi0 = hi1 = hi2 = -inf
-    rmax = 0.0
+    flat = c.reshape(-1)
+    lo = np.full((parts, _LANES), np.inf)
+    hi = np.full((parts, _LANES), -np.inf)
+    bad = np.zeros((parts, _LANES))
+    rlo = np.full((parts, _LANES), np.inf)
+    rhi = np.full((parts, _LANES), -np.inf)
+    rbad = np.zeros((parts, _LANES))
+    for t in prange(parts):
+        b0 = (n * t // parts) // 8 * 8
+        b1 = n if t == parts - 1 else (n * (t + 1) // parts) // 8 * 8
+        _extremes(flat, np.uint64(3 * b0), np.uint64(3 * b1), lo[t], hi[t], bad[t])
+        _extremes(r, np.uint64(b0), np.uint64(b1), rlo[t], rhi[t], rbad[t])
+    return lo, hi, bad, rlo, rhi, rbad
+
+
+_frame_lanes_serial = njit(cache=True)(_frame_lanes.py_func)
+
+
+@njit(cache=True)
+def _combine(n, lo, hi, bad, rlo, rhi, rbad):
     ok = True
-    for i in range(n):
-        x = c[i, 0]
-        y = c[i, 1]
-        z = c[i, 2]
-        ri = r[i]
-        lo0 = min(lo0, x)
-        lo1 = min(lo1, y)
-        lo2 = min(lo2, z)
-        hi0 = max(hi0, x)
-        hi1 = max(hi1, y)
-        hi2 = max(hi2, z)
-        rmax = max(rmax, ri)
-        ok &= (abs(x) < inf) & (abs(y) < inf) & (abs(z) < inf) & (ri >= 0.0) & (ri < inf)
+    lo3 = np.full(3, np.inf)
+    hi3 = np.full(3, -np.inf)
+    rmin = np.inf
+    rmax = 0.0
+    for t in range(lo.shape[0]):
+        for u in range(_LANES):
+            k = u % 3
+            lo3[k] = min(lo3[k], lo[t, u])
+            hi3[k] = max(hi3[k], hi[t, u])
+            rmin = min(rmin, rlo[t, u])
+            rmax = max(rmax, rhi[t, u])
+            ok &= (bad[t, u] == 0.0) & (rbad[t, u] == 0.0)
+    ok &= rmin >= 0.0
     amax = 0.0
     if n > 0:
-        amax = max(max(abs(lo0), abs(lo1), abs(lo2)), max(abs(hi0), abs(hi1), abs(hi2)))
-    return ok, np.array([lo0, lo1, lo2]), np.array([hi0, hi1, hi2]), amax, rmax
+        amax = max(max(abs(lo3[0]), abs(lo3[1]), abs(lo3[2])), max(abs(hi3[0]), abs(hi3[1]), abs(hi3[2])))
+    return ok, lo3, hi3, amax, rmax
+
+
+def frame_stats(c: np.ndarray, r: np.ndarray):
+    """One pass over a frame (C-contiguous float64 ``c`` (N, 3), ``r`` (N,)): (finite and radii
+    >= 0, lower corner (3,), upper corner (3,), largest |coordinate|, largest radius).
+    Replaces a dozen numpy reductions per frame; on every thread from STATS_PARALLEL_MIN
+    bodies."""
+    n = c.shape[0]
+    if n >= STATS_PARALLEL_MIN:
+        lanes = _frame_lanes(c, r, 2 * max(1, get_num_threads()))
+    else:
+        lanes = _frame_lanes_serial(c, r, 1)
+    return _combine(n, *lanes)
 
 
 def pad_for(amax: float, rmax: float) -> float:

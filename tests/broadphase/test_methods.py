@@ -152,3 +152,31 @@ def test_bad_input_is_refused():
         det.update(np.zeros((2, 3)), -1.0)
     with pytest.raises(UnknownNameError):
         make_detector("octree")
+
+
+@pytest.mark.parametrize("n", [2, 9, 1001, 60_007])  # the serial pass and, from 50,000, the parallel one
+def test_frame_checks_find_any_bad_value_and_exact_bounds(n):
+    # the frame's pass keeps running extremes in 24 lanes per thread: every coordinate and radius
+    # position, the last few bodies (the lanes' tail) included, is checked and bounded
+    from shared.broadphase.base import frame_stats
+
+    rng = np.random.default_rng(n)
+    c = rng.normal(size=(n, 3)) * 50.0
+    r = rng.uniform(0.0, 2.0, n)
+    ok, lo, hi, amax, rmax = frame_stats(c, r)
+    assert ok
+    assert np.array_equal(lo, c.min(axis=0)) and np.array_equal(hi, c.max(axis=0))
+    assert amax == np.abs(c).max() and rmax == r.max()
+    for i in sorted({0, n // 2, max(0, n - 8), n - 1}):
+        for k in range(3):
+            for bad in (np.nan, np.inf, -np.inf):
+                c2 = c.copy()
+                c2[i, k] = bad
+                assert not frame_stats(c2, r)[0], (i, k, bad)
+        for bad in (np.nan, np.inf, -1e-300):
+            r2 = r.copy()
+            r2[i] = bad
+            assert not frame_stats(c, r2)[0], (i, bad)
+    r2 = r.copy()
+    r2[n - 1] = -0.0  # a zero radius, signed or not, is a point
+    assert frame_stats(c, r2)[0]
