@@ -15,10 +15,12 @@ column its box overlaps writes about 2.25 entries a body. Here:
 * the candidates of body ``a`` are two memory ranges: the rest of its column followed by column
   (x, y+1), which is adjacent in memory, and the three columns (x+1, y-1 .. y+1), also
   adjacent. Each range is tested by loops of constant length without branches (a squared
-  centre distance against the largest contact distance): the first BLOCK candidates of every
-  body in one pass vectorised across bodies, the rest HUGE at a time; only a body with a hit
-  runs the exact predicate (see ``_test_bodies``). Each unordered pair of neighbouring columns
-  is visited from one side only, so every pair is found exactly once;
+  centre distance against the largest contact distance, on float32 copies of the centres with
+  the reach widened by their rounding bound, ``filter_frame``): the first BLOCK candidates of
+  every body in one pass vectorised across bodies, the rest HUGE at a time; only the
+  candidates that pass, of the bodies with a hit, meet the exact float64 predicate (see
+  ``_test_bodies``). Each unordered pair of neighbouring columns is visited from one side only,
+  so every pair is found exactly once;
 * temporal coherence (the role of the thesis's AVL trees): the bodies are kept in the last
   frame's column order. Each frame they are binned in that order, so the counting sort by column
   moves memory nearly in sequence and the sorted copies stay close to last frame's;
