@@ -35,21 +35,25 @@ column its box overlaps writes about 2.25 entries a body. Here:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import get_num_threads, get_parallel_chunksize, njit, prange, set_parallel_chunksize
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from shared.broadphase.base import sphere_overlap
 from shared.broadphase.grid import PARALLEL_MIN, kernel_for
-from numba.cpython.unsafe.numbers import trailing_zeros
-
 from shared.broadphase.prefetch import prefetch
 
 #: body ranges per thread in the test pass (load balance on clustered scenes, and on a machine
 #: shared with other jobs: ranges are handed out one at a time, so a thread that the system
 #: holds back leaves its remaining ranges to the other)
 CHUNKS_PER_THREAD = 4
-#: body ranges per thread for binning and scattering (each with its own histogram)
-PARTS_PER_THREAD = 2
+#: body ranges per thread for binning and scattering (each with its own histogram). One: the
+#: histograms' zeroing and prefix sum are per column (about one a body), and two ranges a thread
+#: cost more in them than they gained in balance (interleaved, 100k, 2 threads: 2.42-2.83
+#: against 2.56-2.88 ms a frame on the sediment scene, 1.91-1.93 against 2.03-2.06 uniform)
+PARTS_PER_THREAD = 1
 #: width of the branch-free filter (one AVX-512 register of float64, two AVX2 ones) ...
 BLOCK = 8
 #: ... and its width in crowded neighbourhoods (measured best: 8 and 16)
@@ -502,6 +506,36 @@ def filter_frame(lo, hi, reach):
     return scale, freach2
 
 
+class _Workspace:
+    """The work arrays of one scene size, allocated once: fresh large arrays cost page faults
+    every frame, and Python between the kernels runs cold (its data evicted by theirs: a numpy
+    call there costs 3-10x its warm time), so a frame does as few Python steps as it can. The
+    float32 copies keep their NaN padding (read by the fixed-width filter, never counted) from
+    allocation on: the scatter writes only the first n slots."""
+
+    def __init__(self, n: int, n_parts: int, n_columns: int) -> None:
+        self.n = n
+        self.n_parts = n_parts
+        self.column_capacity = n_columns + n_columns // 4 + 16
+        self.index_type = np.int32 if n < 2**31 else np.int64
+        self.col_type = np.int32 if self.column_capacity < 2**31 else np.int64
+        self.key = np.empty(n, self.col_type)
+        self.hist = np.empty(n_parts * self.column_capacity, self.index_type)
+        self.starts = np.empty(self.column_capacity + 1, np.int64)
+        self.rows = np.empty((n, 4), np.float64)
+        self.fx = np.full(n + HUGE, np.nan, np.float32)
+        self.fy = np.full(n + HUGE, np.nan, np.float32)
+        self.fz = np.full(n + HUGE, np.nan, np.float32)
+        self.src = np.empty(n, self.index_type)
+        self.col = np.empty(n, self.col_type)
+        self.first_end = np.empty(n, self.index_type)
+        #: where the next body order is written; the order just used becomes the spare
+        self.spare = np.empty(n, self.index_type)
+
+    def fits(self, n: int, n_parts: int, n_columns: int) -> bool:
+        return self.n == n and self.n_parts == n_parts and n_columns <= self.column_capacity
+
+
 class ColumnEngine:
     """Per-frame runner of the column grid; keeps the body order and buffers between frames."""
 
@@ -510,81 +544,71 @@ class ColumnEngine:
         self.zwin_min = max(zwin_min, sort_min)  # only sorted columns take the z windows
         self._perm: np.ndarray | None = None
         self._expected_pairs = 0
-        self._buffers: dict[str, np.ndarray] = {}
-
-    def _buf(self, name: str, shape: tuple, dtype) -> np.ndarray:
-        """A reusable work array (fresh large allocations cost page faults every frame)."""
-        b = self._buffers.get(name)
-        if b is None or b.shape[0] < shape[0] or b.shape[1:] != shape[1:] or b.dtype != np.dtype(dtype):
-            b = self._buffers[name] = np.empty((max(shape[0], 1) + max(shape[0], 1) // 4,) + shape[1:], dtype=dtype)
-        return b[: shape[0]]
+        self._ws: _Workspace | None = None
+        self._out = np.empty((0, 2), np.int64)
 
     def pairs(self, centres: np.ndarray, radii: np.ndarray, lo: np.ndarray, hi: np.ndarray, cell: float,
               rmax_pad: float) -> np.ndarray:
         """Unsorted ``(K, 2)`` int64 pairs ``i < j`` of overlapping bodies, each once.
 
-        ``lo``, ``hi``: a box holding the centres (bodies outside fall in the edge columns, which
-        stays exact); ``cell``: the column side, at least ``min_cell`` (the largest diameter plus
-        padding); ``rmax_pad``: the largest radius plus the rounding pad."""
+        ``lo``, ``hi``: float64 arrays, a box holding the centres; ``cell``: the column side, at
+        least ``min_cell`` (the largest diameter plus padding); ``rmax_pad``: the largest radius
+        plus the rounding pad."""
         n = centres.shape[0]
         parallel = n >= PARALLEL_MIN
         n_threads = max(1, get_num_threads()) if parallel else 1
         n_parts = n_threads * PARTS_PER_THREAD if parallel else 1
-        ncx = max(1, int(np.ceil((hi[0] - lo[0]) / cell)))
-        ncy = max(1, int(np.ceil((hi[1] - lo[1]) / cell)))
+        ox, oy = float(lo[0]), float(lo[1])
+        ncx = max(1, math.ceil((float(hi[0]) - ox) / cell))
+        ncy = max(1, math.ceil((float(hi[1]) - oy) / cell))
         n_columns = (ncx + 1) * (ncy + 2)  # with the empty border (see _gather_bin)
+        ws = self._ws
+        if ws is None or not ws.fits(n, n_parts, n_columns):
+            ws = self._ws = _Workspace(n, n_parts, n_columns)
         perm = self._perm
         if perm is None or perm.shape[0] != n:
-            perm = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
-        col_type = np.int32 if n_columns < 2**31 else np.int64
-        count_type = np.int32 if n < 2**31 else np.int64
-        key = self._buf("key", (n,), col_type)
-        hist = self._buf("hist", (n_parts * n_columns,), count_type).reshape(n_parts, n_columns)
-        rows = self._buf("rows", (n, 4), np.float64)
+            perm = np.arange(n, dtype=ws.index_type)
         chunksize = get_parallel_chunksize()
         set_parallel_chunksize(1)  # hand out body ranges one at a time (see CHUNKS_PER_THREAD)
         try:
-            return self._run(centres, radii, perm, lo, hi, cell, rmax_pad, n, parallel, n_threads, n_parts,
-                             ncx, ncy, col_type, key, hist, rows)
+            return self._run(ws, centres, radii, perm, lo, hi, ox, oy, cell, rmax_pad, parallel, n_threads,
+                             ncx, ncy, n_columns)
         finally:
             set_parallel_chunksize(chunksize)
 
-    def _run(self, centres, radii, perm, lo, hi, cell, rmax_pad, n, parallel, n_threads, n_parts, ncx, ncy,
-             col_type, key, hist, rows) -> np.ndarray:
-        n_columns = hist.shape[1]
+    def _run(self, ws, centres, radii, perm, lo, hi, ox, oy, cell, rmax_pad, parallel, n_threads, ncx, ncy,
+             n_columns) -> np.ndarray:
+        n = ws.n
+        n_parts = ws.n_parts
         ny = ncy + 2  # columns in a row of the padded grid (see _gather_bin)
-        kernel_for(_gather_bin, n)(centres, radii, perm, float(lo[0]), float(lo[1]), 1.0 / cell, ncx, ncy,
-                                   rows, key, hist, n_parts)
-        starts = self._buf("starts", (n_columns + 1,), np.int64)
+        hist = ws.hist[: n_parts * n_columns].reshape(n_parts, n_columns)
+        starts = ws.starts[: n_columns + 1]
+        kernel_for(_gather_bin, n)(centres, radii, perm, ox, oy, 1.0 / cell, ncx, ncy, ws.rows, ws.key, hist,
+                                   n_parts)
         largest = _offsets(hist, starts)
-        fx = self._buf("fx", (n + HUGE,), np.float32)
-        fy = self._buf("fy", (n + HUGE,), np.float32)
-        fz = self._buf("fz", (n + HUGE,), np.float32)
-        for b in (fx, fy, fz):
-            b[n:] = np.nan  # the padding read by the fixed-width filter never counts
         reach = 2.0 * rmax_pad
-        scale, reach2 = filter_frame(lo, hi, reach)  # compiled: Python runs cold between the kernels
+        scale, reach2 = filter_frame(lo, hi, reach)
         freach2 = np.float32(reach2)
-        origin = lo
-        src = self._buf("src", (n,), perm.dtype)
-        col = self._buf("col", (n,), col_type)
-        ids = np.empty(n, dtype=perm.dtype)  # becomes next frame's order: not a shared buffer
-        first_end = self._buf("first_end", (n,), perm.dtype)
-        kernel_for(_scatter, n)(rows, perm, key, hist, n_parts, starts, src, ids, col, first_end,
-                                fx, fy, fz, origin, scale)
+        ids = ws.spare  # becomes next frame's order
+        kernel_for(_scatter, n)(ws.rows, perm, ws.key, hist, n_parts, starts, ws.src, ids, ws.col, ws.first_end,
+                                ws.fx, ws.fy, ws.fz, lo, scale)
         if largest > self.sort_min:  # only heavy clusters have columns to keep in z order
-            kernel_for(_sort_columns, n)(starts, n_columns, n_parts, rows, src, ids, fx, fy, fz,
+            kernel_for(_sort_columns, n)(starts, n_columns, n_parts, ws.rows, ws.src, ids, ws.fx, ws.fy, ws.fz,
                                          self.sort_min)
         n_chunks = n_threads * CHUNKS_PER_THREAD if parallel else 1
         cap = max(64, (3 * self._expected_pairs) // (2 * n_chunks) + 64)
         while True:
-            out = self._buf("out", (n_chunks * cap, 2), np.int64)
+            if self._out.shape[0] < n_chunks * cap:
+                self._out = np.empty((n_chunks * cap + n_chunks * cap // 4, 2), np.int64)
             found = np.zeros(n_chunks, dtype=np.int64)
-            kernel_for(_test_all, n)(n_chunks, starts, col, first_end, ny, rows, src, ids, reach,
-                                     out, cap, found, self.sort_min, self.zwin_min, fx, fy, fz, freach2)
-            if found.max() <= cap:
+            kernel_for(_test_all, n)(n_chunks, starts, ws.col, ws.first_end, ny, ws.rows, ws.src, ids, reach,
+                                     self._out, cap, found, self.sort_min, self.zwin_min, ws.fx, ws.fy, ws.fz,
+                                     freach2)
+            most = found.max()
+            if most <= cap:
                 break
-            cap = int(found.max()) + 64  # the tests only read: a rerun finds the same pairs
+            cap = int(most) + 64  # the tests only read: a rerun finds the same pairs
         self._expected_pairs = int(found.sum())
+        ws.spare = perm if perm.dtype == ids.dtype else np.empty_like(ids)
         self._perm = ids
-        return _collect(out, found, cap)
+        return _collect(self._out, found, cap)
