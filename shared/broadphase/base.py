@@ -164,45 +164,52 @@ class Frame:
         self.pad = pad_for(float(amax), self.rmax)
 
 
-#: bits per pass of the radix sort in ``sort_pairs``
-_RADIX_BITS = 11
+#: widest digit of the radix sort in ``sort_pairs`` (buckets: 2^13 at most)
+_RADIX_BITS = 13
 
 
 @njit(cache=True)
 def _sorted_pairs(pairs, n):
-    """Rows in (min, max) order, sorted by the key ``min * n + max`` with a least-significant-
-    digit radix sort (measured 3.4x numpy's sort at 8,700 pairs, 8x at 110,000)."""
+    """Rows in (min, max) order, sorted by the key ``min << s | max`` (``s`` the bits of n - 1:
+    decoding is a shift and a mask, where ``min * n + max`` took a 64-bit division a row) with
+    a least-significant-digit radix sort: as few passes as digits of up to _RADIX_BITS allow,
+    every pass's histogram counted in one read of the keys (measured 3.4x numpy's sort at 8,700
+    pairs, 8x at 110,000 before these two changes, which took a further quarter off at 11,000
+    and a tenth at 110,000)."""
     m = pairs.shape[0]
+    s = 1
+    while (np.int64(1) << s) < n:
+        s += 1
+    bits = 2 * s
+    passes = (bits + _RADIX_BITS - 1) // _RADIX_BITS
+    width = (bits + passes - 1) // passes
+    digits = 1 << width
+    mask = digits - 1
     key = np.empty(m, np.int64)
+    count = np.zeros((passes, digits + 1), np.int64)
     for i in range(m):
         a = np.int64(pairs[i, 0])
         b = np.int64(pairs[i, 1])
-        if a > b:
-            a, b = b, a
-        key[i] = a * n + b
-    bits = 1
-    while (np.int64(1) << bits) < np.int64(n) * n:
-        bits += 1
-    digits = 1 << _RADIX_BITS
-    mask = digits - 1
+        k = (min(a, b) << s) | max(a, b)
+        key[i] = k
+        for p in range(passes):
+            count[p, ((k >> (p * width)) & mask) + 1] += 1
     tmp = np.empty(m, np.int64)
-    count = np.empty(digits + 1, np.int64)
-    for shift in range(0, bits, _RADIX_BITS):
-        count[:] = 0
-        for i in range(m):
-            count[((key[i] >> shift) & mask) + 1] += 1
+    for p in range(passes):
+        c = count[p]
         for d in range(digits):
-            count[d + 1] += count[d]
+            c[d + 1] += c[d]
+        shift = p * width
         for i in range(m):
             d = (key[i] >> shift) & mask
-            tmp[count[d]] = key[i]
-            count[d] += 1
+            tmp[c[d]] = key[i]
+            c[d] += 1
         key, tmp = tmp, key
     out = np.empty((m, 2), PAIR_DTYPE)
+    low = (np.int64(1) << s) - 1
     for i in range(m):
-        a = key[i] // n
-        out[i, 0] = a
-        out[i, 1] = key[i] - a * n
+        out[i, 0] = key[i] >> s
+        out[i, 1] = key[i] & low
     return out
 
 
