@@ -42,10 +42,12 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
     # the session's own work per update (generation merging a sweep's reversals, replanning the
     # program) is bench_console's to measure
     assert console.api("PUT", "/api/program/auto", json={"on": False}).status_code == 200
+    x_before = ui.session()["arm"]["tool_xyz_mm"][0]
     ui.drag_gizmo_x(30)  # a first drag: the page has drawn the gizmo and the arm has moved once
     assert sent, "the page sent no gizmo update on its WebSocket for a drag that moved the arm"
     cx, cy = ui.canvas_center()
     x_start = ui.session()["arm"]["tool_xyz_mm"][0]
+    mm_per_px = abs(x_start - x_before) / 30.0  # how far the arm follows a pixel of drag in this view
     with EventTimes(console.url) as events:
         for grab in (40, 55, 30, 70, 25):  # where the x arrow is (as in ConsolePage.drag_gizmo_x)
             page.mouse.move(cx + grab, cy)
@@ -73,4 +75,9 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
         f"the page sent {updates} gizmo updates for {len(dispatched)} pointer moves over {sweep_s:.2f} s: "
         f"viser's pacing allows {viser_most:.0f}, so the updates still come at its 20 a second"
     )
-    assert abs(ui.session()["arm"]["tool_xyz_mm"][0] - x_start) < 60.0  # a sweep about the start, not a runaway
+    # a sweep about the start, not a runaway: the arm ends within the sweep's reach (40 px either
+    # side) of where it started. Not necessarily back at the start: when the page is busy it sends
+    # fewer updates (118-120 against 160-172 for the same sweep) and the arm was measured to end
+    # anywhere from the start to about one amplitude away (605-684 mm from 607.5 mm, 1.9 mm a px)
+    reach_mm = 40 * mm_per_px
+    assert abs(ui.session()["arm"]["tool_xyz_mm"][0] - x_start) < 1.25 * reach_mm
