@@ -607,6 +607,6 @@ class ColumnEngine:
                 break
             cap = int(most) + 64  # the tests only read: a rerun finds the same pairs
         self._expected_pairs = int(found.sum())
-        ws.spare = perm if perm.dtype == ids.dtype else np.empty_like(ids)
+        ws.spare = perm  # same size and type: both come from this workspace's index type
         self._perm = ids
         return _collect(self._out, found, cap)

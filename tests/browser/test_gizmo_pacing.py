@@ -25,6 +25,8 @@ pytestmark = pytest.mark.browser
 
 GIZMO_MESSAGE = b"TransformControlsUpdateMessage"
 VISER_INTERVAL_S = 0.050  # makeThrottledMessageSender(viewer, 50) in viser's SceneTree.tsx
+FIRST_DRAG_PX = 30  # the drag that shows the gizmo moves the arm, and how far a pixel takes it
+SWEEP_PX = 40  # the sweep's amplitude, either side of the grab point
 
 
 def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page) -> None:
@@ -43,11 +45,11 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
     # program) is bench_console's to measure
     assert console.api("PUT", "/api/program/auto", json={"on": False}).status_code == 200
     x_before = ui.session()["arm"]["tool_xyz_mm"][0]
-    ui.drag_gizmo_x(30)  # a first drag: the page has drawn the gizmo and the arm has moved once
+    ui.drag_gizmo_x(FIRST_DRAG_PX)  # a first drag: the page has drawn the gizmo and the arm has moved once
     assert sent, "the page sent no gizmo update on its WebSocket for a drag that moved the arm"
     cx, cy = ui.canvas_center()
     x_start = ui.session()["arm"]["tool_xyz_mm"][0]
-    mm_per_px = abs(x_start - x_before) / 30.0  # how far the arm follows a pixel of drag in this view
+    mm_per_px = abs(x_start - x_before) / FIRST_DRAG_PX  # how far the arm follows a pixel of drag in this view
     with EventTimes(console.url) as events:
         for grab in (40, 55, 30, 70, 25):  # where the x arrow is (as in ConsolePage.drag_gizmo_x)
             page.mouse.move(cx + grab, cy)
@@ -55,7 +57,7 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
             before = len(sent)
             page.mouse.down()
             t0 = time.perf_counter()
-            dispatched = ui.pointer_sweep(cx + grab, cy, amplitude=40, hz=100, seconds=2.0, every_move=True)
+            dispatched = ui.pointer_sweep(cx + grab, cy, amplitude=SWEEP_PX, hz=100, seconds=2.0, every_move=True)
             page.mouse.up()
             time.sleep(0.3)
             page.evaluate("1")  # let Playwright hand over the frames still on their way
@@ -75,9 +77,9 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
         f"the page sent {updates} gizmo updates for {len(dispatched)} pointer moves over {sweep_s:.2f} s: "
         f"viser's pacing allows {viser_most:.0f}, so the updates still come at its 20 a second"
     )
-    # a sweep about the start, not a runaway: the arm ends within the sweep's reach (40 px either
+    # a sweep about the start, not a runaway: the arm ends within the sweep's reach (SWEEP_PX either
     # side) of where it started. Not necessarily back at the start: when the page is busy it sends
     # fewer updates (118-120 against 160-172 for the same sweep) and the arm was measured to end
     # anywhere from the start to about one amplitude away (605-684 mm from 607.5 mm, 1.9 mm a px)
-    reach_mm = 40 * mm_per_px
+    reach_mm = SWEEP_PX * mm_per_px
     assert abs(ui.session()["arm"]["tool_xyz_mm"][0] - x_start) < 1.25 * reach_mm
