@@ -180,11 +180,16 @@ class RobotCore:
     def skip_idle(self, until: float) -> bool:
         """Virtual time only: move an idle robot's clock on to ``until`` without servo ticks, as if
         it had ticked with nothing to run (no statement running or waiting, nothing held for the
-        operator). Its heartbeats of the skipped periods are not sent (nobody hears them in virtual
+        operator). On physics only while the world is at rest (``PhysicsWorld.asleep``): a world
+        still settling is stepped. Its heartbeats of the skipped periods are not sent (nobody hears them in virtual
         time), the next one is due as if it had. False, and nothing changes, when it is not idle."""
         ex = self.executor
         if ex.busy or ex.state is not RobotState.IDLE or until <= ex.time:
             return False
+        if ex.physical:
+            if not ex.world.asleep:
+                return False  # something still moves: the periods are stepped
+            ex.world.advance(until - ex.time)  # at rest: the clock moves on, no physics step
         ex.time = until
         while self._next_heartbeat <= until:
             self._next_heartbeat += self.heartbeat_s

@@ -46,6 +46,7 @@ import logging
 from collections import deque
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -72,6 +73,9 @@ from shared.wire.messages import MAX_TEXT, ControlMode, RobotSnapshot, RobotStat
 from robot_sim.settings import ExecutorSettings
 from robot_sim.world import PegState, SimWorld
 
+if TYPE_CHECKING:
+    from robot_sim.physics.world import PhysicsWorld
+
 log = logging.getLogger(__name__)
 
 
@@ -93,6 +97,8 @@ _Runner = Generator[None, None, str | None]
 
 _FORCE_GROWTH_N = 1e-6
 """Growth of a start-in-contact force that counts as pressing further (N; the force is noise-free)."""
+_PHYSICS_FORCE_GROWTH_N = 2.0
+"""The same on physics, where a force at rest still rings by a newton or so as the servo settles."""
 
 
 def _one_line(exc: BaseException) -> str:
@@ -103,7 +109,7 @@ def _one_line(exc: BaseException) -> str:
 class Executor:
     """One arm, one buffer of numbered statements, stepped one servo period at a time."""
 
-    def __init__(self, cell: Cell, world: SimWorld, settings: ExecutorSettings | None = None, q0: np.ndarray | None = None,
+    def __init__(self, cell: Cell, world: "SimWorld | PhysicsWorld", settings: ExecutorSettings | None = None, q0: np.ndarray | None = None,
                  scene: SceneModel | None = None):
         """``scene``: the cell's collision model when the caller built it already (trials build it
         once for many robots); otherwise it is built here."""
@@ -114,6 +120,16 @@ class Executor:
         self.dt = 1.0 / self.settings.servo_rate
         self.time = 0.0
         self.q = np.array(cell.q_home if q0 is None else q0, dtype=float)
+        self.physical = bool(getattr(world, "physical", False))
+        """The world is contact physics: the arm is where the servo got it, the sensors read the
+        present (no pose can be asked about before it is reached)."""
+        if self.physical:
+            self.q = world.q
+        self._setpoint: np.ndarray | None = None  # what the servo holds between motions (None: where the world stopped it)
+        self._commanded = False  # a motion commanded the servo in this tick
+        self._comply = np.zeros(6)  # compliance's offset of the tool point (m, rad; world axes)
+        self._complying = False  # force mode or a force-compliant task: the tool gives way
+        self._in_task = False
         self.state = RobotState.IDLE
         self.mode = Mode.POSITION
         zones = None
@@ -157,7 +173,16 @@ class Executor:
         """Something runs or waits in the buffer."""
         return self.current is not None or bool(self.queue)
 
+    def _hold(self) -> None:
+        """The joint servo holds the arm where it is now (physics: the measured pose)."""
+        if self.physical:
+            self.world.hold()
+            self._setpoint = None
+            self.q = self.world.q
+
     def stop(self) -> tuple[bool, str]:
+        if self.state in (RobotState.RUNNING, RobotState.IDLE):
+            self._hold()
         if self.state is RobotState.RUNNING:
             self.state = RobotState.STOPPED
             return True, "stopped: arm holding; resume, skip or abort"
@@ -175,6 +200,7 @@ class Executor:
             return False
         self.state = RobotState.STOPPED
         self.halted = reason
+        self._hold()
         log.warning("robot halted: %s", reason)
         return True
 
@@ -213,6 +239,10 @@ class Executor:
         self._runner = None
         self.state = RobotState.FAULT
         self.halted = reason
+        try:
+            self._hold()
+        except Exception:  # noqa: BLE001 - a world that cannot even hold is reported, not fatal
+            log.exception("cannot hold the arm")
         if self.current is not None:
             number, _ = self.current
             self.current = None
@@ -222,11 +252,14 @@ class Executor:
     def tick(self) -> list[ExecutorEvent]:
         """Advance one servo period; return the status changes it produced."""
         self.time += self.dt
+        self._commanded = False
         if self.state is RobotState.IDLE and not self.hold_queue and self.current is None and self.queue:
             self._start(*self.queue.popleft())
         if self.state is RobotState.RUNNING and self._runner is not None:
             try:
                 next(self._runner)
+                if self.physical and self.state is RobotState.RUNNING:
+                    self._watch_physics()
             except StopIteration as done:
                 self._finish(StatementState.DONE, done.value)
             except (StepFailure, PlanRefused, TeleprogError) as exc:
@@ -234,6 +267,8 @@ class Executor:
             except Exception as exc:  # noqa: BLE001 - no statement may end the process
                 log.exception("statement %d raised while executing", self.current_number)
                 self._fail(f"internal error while executing: {type(exc).__name__}: {_one_line(exc)}")
+        if self.physical and not self._commanded:
+            self._idle_servo()
         self._sense()
         events, self._events = self._events, []
         return events
@@ -273,6 +308,7 @@ class Executor:
 
     def _fail(self, reason: str) -> None:
         log.warning("statement %s failed: %s", self.current[0] if self.current else "?", reason)
+        self._hold()
         self.state = RobotState.FAULT  # before the report, so the report carries it
         self._finish(StatementState.FAILED, reason)
 
@@ -301,10 +337,18 @@ class Executor:
         # must not fail a motion that lifts off)
         start = self.world.contact(self.q, noise=False)
         pressing = max(start.magnitude, limit) if start.touching else None
-        stepper = segment.stepper(_WorldSensors(self.world), dt=self.dt, t0=self.time)
+        self._comply = np.zeros(6)
+        self._complying = self.physical and (self.mode is Mode.FORCE or self._in_task)
+        stop_force = segment.until.newtons if isinstance(segment.until, UntilForce) else None
+        if isinstance(segment.until, UntilContact):
+            stop_force = self.settings.touch_force
+        stepper = segment.stepper(_WorldSensors(self.world, self.physical), dt=self.dt, t0=self.time)
         while True:
             step = stepper.step()
-            pressing = self._move_to(step.q, guarded, pressing)
+            if self.physical:
+                pressing = self._servo_to(step.q, step.qd, guarded, pressing, stop_force)
+            else:
+                pressing = self._move_to(step.q, guarded, pressing)
             if step.done:
                 return step.reason or StopReason.COMPLETED
             yield
@@ -353,6 +397,123 @@ class Executor:
         self.world.follow(q)
         return pressing
 
+    # -- the physics world's servo ---------------------------------------------------------------
+    def _servo_to(self, q: np.ndarray, qd: np.ndarray, guarded: bool, pressing: float | None = None,
+                  stop_force: float | None = None) -> float | None:
+        """Physics: command one servo period towards ``q`` and judge what the sensors then read.
+
+        The collision core still refuses a commanded pose that would put the arm into the cell
+        (checked before the command, on the model's shapes at the real objects' poses). What the
+        physics does is read after the period, as a force-monitored servo reads it: a force over
+        the limit, or any link of the arm touching something, holds the arm where it is and fails
+        the statement. ``pressing`` as in ``_move_to``, on the measured force. ``stop_force``: an
+        UNTIL FORCE threshold; the force monitor holds the arm within a millisecond of it."""
+        q = np.asarray(q, dtype=float).copy()
+        if q.shape != self.q.shape or not np.all(np.isfinite(q)):
+            raise StepFailure(f"the planner produced an unusable joint vector {np.array2string(q, precision=4)[:120]}")
+        qd = np.asarray(qd, dtype=float)
+        if self._complying and guarded:
+            q = self._comply_q(q)
+        if self._scene is not None:
+            poses = {name: peg.world_T_peg for name, peg in self._poses_after(q).items()}
+            report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
+            if report.colliding:
+                pair = report.pairs[0]
+                raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
+        if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
+            shape = self._terrain.exact_check(q).shape
+            raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
+        limit = self.settings.max_force if guarded else self.settings.contact_limit
+        monitor = limit if pressing is None else None
+        if stop_force is not None and monitor is not None:
+            monitor = min(monitor, stop_force)
+        tripped = self.world.servo(q, qd if np.all(np.isfinite(qd)) and qd.shape == q.shape else None, monitor,
+                                   guarded=guarded)
+        self._setpoint = None if tripped else q
+        self._commanded = True
+        self.q = self.world.q
+        felt = self.world.contact()
+        if pressing is not None:
+            clean = self.world.contact(noise=False)
+            if clean.touching and clean.magnitude > pressing + _PHYSICS_FORCE_GROWTH_N:
+                self._hold()
+                raise StepFailure(
+                    f"pressing further into {clean.what or 'the contact'} ({clean.magnitude:.1f} N, "
+                    f"{pressing:.1f} N at the start); only motions that back away are allowed"
+                )
+            pressing = max(clean.magnitude, limit) if clean.touching else None
+        elif felt.magnitude > limit:
+            self._hold()
+            if guarded:
+                raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {limit:g} N ({felt.what or 'contact'})")
+            raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what or 'the tool'}")
+        return pressing
+
+    def _comply_q(self, q: np.ndarray) -> np.ndarray:
+        """Compliance (force mode, and the robot's force-compliant tasks): the tool gives way to
+        what the wrist sensor reads, as a remote-centre compliance would. An admittance about the
+        tool point: sideways at ``compliance_speed`` per newton across the tool axis, and turning
+        at ``compliance_turn`` per newton metre about the axes across it, at most
+        ``compliance_range`` and ``compliance_tilt`` from the planned path. A peg that meets a
+        chamfer or a wall then slides and turns into line instead of wedging."""
+        s = self.settings
+        wrench = self.world.wrench_clean
+        force = self.world.contact(noise=False).force
+        world_T_tcp = self.world.world_T_tcp()
+        axis = world_T_tcp[:3, 2]
+        lever = world_T_tcp[:3, 3] - self.world.wrist_position()
+        torque = wrench[3:] - np.cross(lever, wrench[:3])  # about the tool point
+        lateral = force - axis * (axis @ force)
+        turning = torque - axis * (axis @ torque)
+        self._comply[:3] += self.dt * s.compliance_speed * lateral
+        self._comply[3:] += self.dt * s.compliance_turn * turning
+        for part, bound in ((slice(0, 3), s.compliance_range), (slice(3, 6), s.compliance_tilt)):
+            norm = float(np.linalg.norm(self._comply[part]))
+            if norm > bound:
+                self._comply[part] *= bound / norm
+        if not np.any(self._comply):
+            return q
+        R_wb = self.cell.world_T_base[:3, :3]
+        base_T_flange = self.robot.fk(q)
+        base_p_tcp = (base_T_flange @ self.cell.flange_T_tcp)[:3, 3]
+        omega = R_wb.T @ self._comply[3:]
+        v_tcp = R_wb.T @ self._comply[:3]
+        v_flange = v_tcp + np.cross(omega, base_T_flange[:3, 3] - base_p_tcp)
+        J = self.robot.jacobian(q)
+        return q + np.linalg.lstsq(J, np.concatenate([v_flange, omega]), rcond=None)[0]
+
+    def _held_setpoint(self) -> np.ndarray:
+        """The joint target the servo holds now (physics): the last commanded one, or where the
+        world's brake stopped the arm."""
+        return self._setpoint if self._setpoint is not None else self.world.target
+
+    def _idle_servo(self) -> None:
+        """Physics: a tick without a motion still passes for the world; the servo holds its setpoint."""
+        try:
+            self.world.servo(self._held_setpoint())
+        except TeleprogError as exc:  # the simulation diverged while holding
+            self.internal_fault(f"physics: {exc}")
+            return
+        if self.world.held_peg() is not None and (lost := self.world.lost()) is not None and self.current is not None:
+            self._fail(lost)
+
+    def _watch_physics(self) -> None:
+        """After a running statement's tick: what the physics did that nobody planned."""
+        lost = self.world.lost()
+        if lost is not None:
+            raise StepFailure(lost)
+        touch = self.world.arm_contact()
+        if touch:
+            self._hold()
+            raise StepFailure(f"unplanned contact: {touch}")
+
+    def _wait(self, seconds: float) -> Generator[None, None, None]:
+        """Let the world go on for ``seconds`` with the arm holding (a task waiting on its gripper)."""
+        for _ in range(max(1, int(round(seconds / self.dt)))):
+            self.world.servo(self._held_setpoint())
+            self._commanded = True
+            yield
+
     def _poses_after(self, q: np.ndarray) -> dict[str, PegState]:
         """Where the pegs would be with the arm at ``q`` (a held peg moves with the tool)."""
         out = {}
@@ -375,21 +536,41 @@ class Executor:
         return q_from + hi * (q_to - q_from)
 
     def _sense(self) -> None:
+        if self.physical:
+            self.q = self.world.q
+            self.wrench = np.array(self.world.wrench)  # tared for the gripper: a held peg reads its weight
+            return
         contact = self.world.contact(self.q)
         self.wrench = np.concatenate([contact.force, np.zeros(3)])
 
     # -- tasks ----------------------------------------------------------------------------------
     def _task(self, call: TaskCall) -> _Runner:
         spec = find_task(call.name)
+        self._in_task = True
+        try:
+            return (yield from self._task_body(call, spec))
+        finally:
+            self._in_task = False
+
+    def _task_body(self, call: TaskCall, spec) -> _Runner:
         objects = [o.name for o in self.cell.objects]
         features = list(self.cell.features)
         if spec.name == "grasp":
             name = resolve_name(call.args[0], objects) if call.args else None
-            held, detail = self.world.grasp(self.q, name)
+            if self.physical:
+                self.world.close_gripper(name)
+                yield from self._wait(self.settings.gripper_time)
+                held, detail = self.world.grasp_result()
+            else:
+                held, detail = self.world.grasp(self.q, name)
             if not held:
                 raise StepFailure(f"grasp failed: {detail}")
             return detail
         if spec.name == "release":
+            if self.physical:
+                self.world.open_gripper()
+                yield from self._wait(self.settings.gripper_time)
+                return self.world.release_result()
             return self.world.release(self.q)
         peg = resolve_name(call.args[0], objects) if call.args else None
         hole = resolve_name(call.args[1], features) if len(call.args) > 1 else None
@@ -404,13 +585,15 @@ class Executor:
             return (yield from self._insert(peg, hole))
         raise StepFailure(f"task {call.name} is known but this robot cannot run it")
 
-    def _tool_line(self, world_p_target: np.ndarray, until: UntilForce | UntilContact | None = None) -> Segment:
-        """Plan a straight tool move to a world point at task speed, orientation kept."""
+    def _tool_line(self, world_p_target: np.ndarray, until: UntilForce | UntilContact | None = None,
+                   speed: float | None = None) -> Segment:
+        """Plan a straight tool move to a world point at task speed (or ``speed`` m/s), orientation kept."""
         self.interpreter.resume_at(self.q)
         statement = Draw(
             position=tuple(float(v) for v in world_p_target),
             frame=Frame.WORLD,
-            speed=Speed(value=self.settings.task_speed, unit=SpeedUnit.FRACTION),
+            speed=Speed(value=self.settings.task_speed, unit=SpeedUnit.FRACTION) if speed is None
+            else Speed(value=speed, unit=SpeedUnit.M_PER_S),
             until=until,
         )
         return self.interpreter.plan_next(statement)
@@ -435,6 +618,8 @@ class Executor:
         return f"{peg} extracted from {hole}"
 
     def _insert(self, peg: str, hole: str) -> _Runner:
+        if self.physical:
+            return (yield from self._insert_physical(peg, hole))
         s = self.settings
         mouth = self.cell.features[hole].world_T_feature[:3, 3]  # where the model says the hole is
         foot = self._foot_offset(peg)
@@ -468,7 +653,125 @@ class Executor:
         reason = yield from self._play(self._tool_line(floor_target, UntilForce(newtons=s.touch_force)), expect_contact=True)
         if reason is StopReason.COMPLETED:
             raise StepFailure(f"insert_peg: {peg} went deeper than {hole}'s floor; the hole is not where expected")
+        if self.physical:
+            yield from self._seat_physical(peg, hole, mouth, depth, foot)
         return f"{peg} seated in {hole}"
+
+    def _insert_physical(self, peg: str, hole: str) -> _Runner:
+        """Insertion on physics, with the tool compliant throughout (``_comply_q``):
+
+        1. approach: the peg's foot ``5 mm`` above the modelled mouth, at task speed;
+        2. guarded descent at ``guarded_speed`` until the wrist feels ``touch_force``;
+        3. if the foot is not in the hole yet, press down with ``press_force``: on a chamfer or an
+           edge the push turns sideways and the compliance slides the peg in;
+        4. still out: a square spiral round the first contact, each probe lifting ``1 mm``, moving
+           over and pressing again, until the foot drops ``2 mm`` below where it touched;
+        5. seat the peg (``_seat_physical``): down to the floor, or jammed."""
+        s = self.settings
+        mouth = self.cell.features[hole].world_T_feature[:3, 3]
+        foot = self._foot_offset(peg)
+        depth = self.world.settings.hole_depth
+        slow = s.guarded_speed
+        yield from self._play(self._tool_line(mouth + np.array([0.0, 0.0, 0.005]) - foot))
+        yield from self._play(self._tool_line(mouth - np.array([0.0, 0.0, depth + 0.002]) - foot,
+                                              UntilForce(newtons=s.touch_force), speed=slow), expect_contact=True)
+        z_touch = self._world_tcp()[2, 3]
+        inside = lambda: self._world_tcp()[2, 3] + foot[2] < mouth[2] - 0.002  # noqa: E731
+        if not inside():
+            yield from self._press(mouth[2] - depth - 0.002 - foot[2])
+        if not inside():
+            found = yield from self._spiral_search(z_touch)
+            if not found:
+                self._hold()
+                raise StepFailure(f"insert_peg: no hole found within {s.search_radius * 1e3:g} mm of the first contact")
+        here = self._world_tcp()[:3, 3]
+        yield from self._play(self._tool_line(np.array([here[0], here[1], mouth[2] - depth - 0.002 - foot[2]]),
+                                              UntilForce(newtons=s.touch_force), speed=slow), expect_contact=True)
+        yield from self._seat_physical(peg, hole, mouth, depth, foot)
+        return f"{peg} seated in {hole}"
+
+    def _spiral_search(self, z_touch: float) -> Generator[None, None, bool]:
+        """Physics: slide the peg over the surface on an Archimedean spiral round the first
+        contact (pitch ``search_pitch``, at ``search_speed``), pressing down with ``press_force``
+        (a force loop on the wrist's vertical reading sets the tool's height), until the peg drops
+        ``2 mm`` below where it touched (found) or the spiral passes ``search_radius``."""
+        s = self.settings
+        world_T_tcp = self._world_tcp()
+        centre = world_T_tcp[:3, 3].copy()
+        R_wb = self.cell.world_T_base[:3, :3]
+        b = s.search_pitch / (2.0 * np.pi)
+        theta, z = 0.0, centre[2]
+        q = self._held_setpoint().copy()
+        mode, self.mode = self.mode, Mode.FORCE
+        self._comply = np.zeros(6)
+        self._complying = False  # the spiral is the sideways motion; the wrist's springs comply
+        try:
+            while b * theta <= s.search_radius:
+                felt = self.world.contact(noise=False).force[2]  # the surface pushes the tool up: > 0
+                if felt > 0.3 * s.press_force:  # on the surface: slide on; falling in: hold still
+                    theta += s.search_speed * self.dt / max(np.hypot(b * theta, b), 1e-9)
+                r = b * theta
+                z += self.dt * s.force_gain * (felt - s.press_force)
+                target = np.array([centre[0] + r * np.cos(theta), centre[1] + r * np.sin(theta), z])
+                here = (self.cell.world_T_base @ self.robot.fk(q) @ self.cell.flange_T_tcp)[:3, 3]
+                J = self.robot.jacobian(q)
+                dq = np.linalg.lstsq(J, np.concatenate([R_wb.T @ (target - here), np.zeros(3)]), rcond=None)[0]
+                q = q + dq
+                self._servo_to(q, dq / self.dt, guarded=True)
+                yield
+                if self._world_tcp()[2, 3] < z_touch - 0.002:
+                    return True
+        finally:
+            self.mode = mode
+        return False
+
+    def _press(self, z_target: float, start_z: float | None = None) -> Generator[None, None, None]:
+        """Push the tool straight down towards ``z_target`` at ``guarded_speed`` until the wrist
+        reads ``press_force`` (compliance on: a chamfer under the peg turns the push sideways)."""
+        here = self._world_tcp()[:3, 3]
+        yield from self._play(self._tool_line(np.array([here[0], here[1], z_target]),
+                                              UntilForce(newtons=self.settings.press_force),
+                                              speed=self.settings.guarded_speed), expect_contact=True)
+        # let the compliance finish sliding under the held push
+        for _ in range(int(round(self.settings.press_settle / self.dt))):
+            self._servo_to(self._held_setpoint(), np.zeros_like(self.q), guarded=True)
+            yield
+
+    def _seat_physical(self, peg: str, hole: str, mouth: np.ndarray, depth: float, foot: np.ndarray) -> Generator[None, None, None]:
+        """Physics: the descent stopped on a force; the peg is seated only if its foot is near
+        the hole's floor. Otherwise push on with ``seat_force`` in force mode's compliance for
+        ``jam_time``: a peg that makes no progress then is jammed (wedged or stuck on a wall)."""
+        s = self.settings
+        foot_depth = lambda: mouth[2] - (self._world_tcp()[2, 3] + foot[2])  # noqa: E731
+        if foot_depth() >= depth - s.seat_tolerance:
+            return
+        here = self._world_tcp()[:3, 3]
+        push = self._tool_line(np.array([here[0], here[1], mouth[2] - depth - 0.002 - foot[2]]),
+                               UntilForce(newtons=s.seat_force))
+        best, since = foot_depth(), self.time
+        stepper = push.stepper(_WorldSensors(self.world, physical=True), dt=self.dt, t0=self.time)
+        mode, self.mode = self.mode, Mode.FORCE
+        try:
+            self._comply = np.zeros(6)
+            self._complying = True
+            while self.time - since < s.jam_time:
+                step = stepper.step()
+                if not step.done:
+                    self._servo_to(step.q, step.qd, guarded=True)
+                else:
+                    self._servo_to(self._held_setpoint(), np.zeros_like(self.q), guarded=True)
+                yield
+                now = foot_depth()
+                if now >= depth - s.seat_tolerance:
+                    return
+                if now > best + 1e-4:
+                    best, since = now, self.time
+        finally:
+            self.mode = mode
+        self._hold()
+        raise StepFailure(
+            f"insert_peg: {peg} jammed {max(foot_depth(), 0.0) * 1e3:.1f} mm into {hole} of {depth * 1e3:.0f} mm "
+            f"(force {self.world.contact().magnitude:.1f} N, no progress in {s.jam_time:g} s)")
 
     # -- reports --------------------------------------------------------------------------------
     def snapshot(self) -> RobotSnapshot:
@@ -491,16 +794,19 @@ class Executor:
 
 
 class _WorldSensors:
-    """The world's force sensor as the planner's ``SensorModel``."""
+    """The world's force sensor as the planner's ``SensorModel``. On physics it reads the present
+    (the pose asked about is where the arm is going, not where it is): a guarded motion stops
+    where the arm was when the force crossed its threshold."""
 
-    def __init__(self, world: SimWorld) -> None:
+    def __init__(self, world, physical: bool = False) -> None:
         self.world = world
+        self.physical = physical
 
     def force(self, t: float, q: np.ndarray) -> float:
-        return self.world.contact(q).magnitude
+        return self.world.contact(None if self.physical else q).magnitude
 
     def contact(self, t: float, q: np.ndarray) -> bool:
-        return self.world.contact(q).touching
+        return self.world.contact(None if self.physical else q).touching
 
 
 def _square_spiral(step: float, radius: float) -> Iterator[tuple[float, float]]:

@@ -69,14 +69,14 @@ class RobotService:
         # imported here, not at the top: the sockets listen before the collision and motion code loads
         from robot_sim.core import RobotCore
         from robot_sim.executor import Executor
-        from robot_sim.world import SimWorld
+        from robot_sim.worlds import make_world
         from shared.cells.loader import load_cell
         from shared.collision import model_cache
 
         settings = self.settings
         model_cache.configure(settings.cache_dir)  # the collision model, built once per robot and cell
         cell = load_cell(settings.cell)
-        world = SimWorld(cell, cell.robot, settings.world)
+        world = make_world(cell, settings.world, servo_period=1.0 / settings.executor.servo_rate)
         return RobotCore(
             Executor(cell, world, settings.executor),
             heartbeat_s=settings.heartbeat_s,

@@ -1,9 +1,9 @@
-"""The telerobot's world: the real cell, which differs from the console's model.
+"""The kinematic world (``--world kinematic``): the analytic stand-in for the real cell, kept for
+unit tests of the executor that need its speed. The telerobot's world is the physics world
+(``robot_sim.physics``); this one has no dynamics, never jams and never sticks.
 
-The console plans against the cell file; the robot lives in a world where the movable objects and
-the holes sit a little elsewhere (seeded offsets), the force sensor is noisy and a peg may stick
-in its hole. That is what makes errors happen as they would on a real arm, and what the
-force-guided tasks and the stop-on-surprise rules are there for.
+The robot lives in a world where the movable objects and the holes sit a little elsewhere (seeded
+offsets) and the force sensor is noisy.
 
 Contact model. The arm is position-controlled. Contact of the held object (or the bare gripper)
 with the cell is modelled as a stiff spring: the force is ``contact_stiffness`` times how far the
@@ -54,7 +54,6 @@ class PegState:
     in_hole: str | None = None
     held: bool = False
     tool_T_peg: np.ndarray | None = None
-    stuck: bool = False
 
 
 @dataclass
@@ -104,13 +103,11 @@ class SimWorld:
                 if np.linalg.norm(T[:2, 3] - model_mouth[:2]) < 1e-6:
                     peg.in_hole = hole.name
                     T[:3, 3] += hole.world_T_hole[:3, 3] - model_mouth
-            peg.stuck = bool(rng.uniform() < self.settings.stick_probability)
             self.pegs[obj.name] = peg
         self.plate_top_z = self._top_of("plate", default=-np.inf)
         self._plate_half = self._half_extent_xy("plate")
         self.table_top_z = self._top_of("table", default=-np.inf)
         self._rng = rng
-        self._stuck_z: dict[str, float] = {}  # foot height where each stuck peg jammed
 
     # -- model lookups ----------------------------------------------------------------------
     def _half_extent_xy(self, name: str) -> np.ndarray:
@@ -198,10 +195,6 @@ class SimWorld:
         if held is not None:
             name, peg = held
             peg.world_T_peg = self.world_T_tcp(q) @ peg.tool_T_peg
-            if peg.stuck and peg.in_hole is not None:
-                lift = peg.world_T_peg[2, 3] - peg.half_size[2] - self._stuck_foot_z(name, peg)
-                if self.settings.contact_stiffness * lift >= self.settings.stick_force:
-                    peg.stuck = False  # pulled hard enough: the jam gives
             if peg.in_hole is not None:
                 hole = self.holes[peg.in_hole]
                 if peg.world_T_peg[2, 3] - peg.half_size[2] > hole.world_T_hole[2, 3]:
@@ -255,15 +248,6 @@ class SimWorld:
             if foot[2] < floor:
                 force[2] += k * (floor - foot[2])
                 what = f"{hole.name} floor"
-            if peg.stuck and peg.in_hole == hole.name and foot[2] < hole.world_T_hole[2, 3]:
-                # the peg is jammed: pulling up stretches the spring until stick_force frees it.
-                # A query only reads the force (at most stick_force, where the jam gives); the peg
-                # frees when the arm really moves there (``follow``), so a force monitor sees the
-                # pull pass its limit even when one servo step would jump past stick_force.
-                lift = foot[2] - self._stuck_foot_z(name, peg)
-                if lift > 0.0:
-                    force[2] -= min(k * lift, self.settings.stick_force)
-                    what = f"{name} stuck in {hole.name}"
         else:
             surface = self.plate_top_z if self._over_plate(foot) else self.table_top_z
             if foot[2] < surface:
@@ -271,11 +255,6 @@ class SimWorld:
                 what = "plate top" if surface == self.plate_top_z else "table top"
         touching = bool(np.linalg.norm(force) > 0.0)
         return Contact(force + self._noise() if noise else force, touching=touching, what=what)
-
-    def _stuck_foot_z(self, name: str, peg: PegState) -> float:
-        if name not in self._stuck_z:
-            self._stuck_z[name] = float(peg.world_T_peg[2, 3] - peg.half_size[2])
-        return self._stuck_z[name]
 
     def _over_plate(self, p: np.ndarray) -> bool:
         plate = next((o for o in self.cell.objects if o.name == "plate"), None)

@@ -11,12 +11,14 @@ repeatable alone and the same batch gives the same table on any executor.
 from __future__ import annotations
 
 import logging
+import math
 import multiprocessing
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -34,15 +36,34 @@ class TrialWorld(BaseModel):
     """How the trials' real world departs from the model (``robot_sim.settings.WorldSettings``),
     in the units people type. Each run gets these with its own seed."""
 
-    model_config = ConfigDict(frozen=True)
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
-    object_offset_mm: float = Field(2.0, ge=0.0, le=20.0, description="max xy offset of the peg and the holes, mm")
+    engine: Literal["physics", "kinematic"] = Field("physics", description="the telerobot's world: MuJoCo contact physics or the kinematic stand-in")
+    object_offset_mm: float = Field(2.0, ge=0.0, le=20.0, description="max xy offset of the plate (with its holes and what stands in them), mm")
     force_noise_n: float = Field(0.05, ge=0.0, le=10.0, description="std of the force sensor's noise, N")
-    stick_probability: float = Field(0.05, ge=0.0, le=1.0, description="chance the peg sticks when pulled out")
+    grasp_tilt_deg: float = Field(0.0, ge=-20.0, le=20.0, description="tilt the peg settles at in the fingers once out of its hole, deg")
+    friction: float | None = Field(None, ge=0.0, le=10.0, description="sliding friction of the cell's contacts (default: the cell's)")
+    clearance_mm: float | None = Field(None, ge=0.0, le=5.0, description="fit of the peg in its holes, mm (default: the cell's geometry)")
 
     def settings(self, seed: int) -> WorldSettings:
-        return WorldSettings(seed=seed, object_offset=self.object_offset_mm / 1e3, force_noise=self.force_noise_n,
-                             stick_probability=self.stick_probability)
+        return WorldSettings(engine=self.engine, seed=seed, object_offset=self.object_offset_mm / 1e3,
+                             force_noise=self.force_noise_n, grasp_tilt=math.radians(self.grasp_tilt_deg),
+                             friction=self.friction,
+                             clearance=None if self.clearance_mm is None else self.clearance_mm / 1e3)
+
+    def described(self, cell: str | Path) -> dict[str, object]:
+        """These settings with the engine's name and every physics parameter the runs use (the
+        cell's ``[physics]`` table with the overrides), for a summary."""
+        out: dict[str, object] = self.model_dump()
+        if self.engine == "kinematic":
+            return {**out, "engine": "kinematic"}
+        import mujoco
+
+        from shared.cells.loader import load_cell
+
+        params = load_cell(cell).physics.with_overrides(
+            friction=self.friction, clearance=None if self.clearance_mm is None else self.clearance_mm / 1e3)
+        return {**out, "engine": "mujoco", "mujoco_version": mujoco.__version__, "physics": params.as_dict()}
 
 
 def world_seed(seed: int, index: int) -> int:

@@ -64,7 +64,7 @@ class KindSummary(_Model):
     delay_ms: float
     seed: int
     cell: str
-    world: dict[str, float]
+    world: dict[str, object]
     modes: list[ModeSummary]
     runs: list[KindRun]
 
@@ -100,7 +100,7 @@ def summarize_mode(kind: str, mode: str, runs: list[KindRun]) -> ModeSummary:
 
 
 def summarize_kind(kind: str, modes: tuple[str, ...], runs: list[KindRun], *, clock: str, delay_ms: float, seed: int,
-                   cell: str, world: dict[str, float]) -> KindSummary:
+                   cell: str, world: dict[str, object]) -> KindSummary:
     ordered = sorted(runs, key=lambda r: (modes.index(r.mode), r.index))
     return KindSummary(
         kind=kind, clock=clock, delay_ms=delay_ms, seed=seed, cell=cell, world=world,

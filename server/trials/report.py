@@ -104,9 +104,14 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
 
 
-def world_line(world: dict[str, float]) -> str:
-    return (f"world: peg and holes off the model by up to {world.get('object_offset_mm', 0):g} mm, force noise "
-            f"{world.get('force_noise_n', 0):g} N, sticking chance {_pct(world.get('stick_probability'))}")
+def world_line(world: dict[str, object]) -> str:
+    physics = world.get("physics") if isinstance(world.get("physics"), dict) else {}
+    friction = world.get("friction") if world.get("friction") is not None else physics.get("friction", "-")
+    clearance = world.get("clearance_mm")
+    fit = f"{clearance:g} mm" if isinstance(clearance, (int, float)) else "the cell's"
+    return (f"world ({world.get('engine', 'mujoco')}): plate and holes off the model by up to "
+            f"{world.get('object_offset_mm', 0):g} mm, force noise {world.get('force_noise_n', 0):g} N, grasp tilt "
+            f"{world.get('grasp_tilt_deg', 0):g} deg, friction {friction}, clearance {fit}")
 
 
 def kind_table_lines(summary: KindSummary) -> list[str]:

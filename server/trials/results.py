@@ -84,7 +84,7 @@ class ApproachSummary(_Model):
     delay_ms: float
     seed: int
     cell: str
-    world: dict[str, float] = Field(default_factory=dict, description="the worlds' settings (each run's seed aside)")
+    world: dict[str, object] = Field(default_factory=dict, description="the worlds' engine and settings (each run's seed aside)")
     statements: int
     virtual_s: float | None
     mean_statement_s: float | None = Field(description="median over runs of the mean telerobot run time, s")
@@ -109,7 +109,7 @@ _med, _iqr = med, iqr
 
 
 def summarize(runs: list[RunResult], *, delay_ms: float, seed: int, cell: str, statements: int,
-              clock: str = "real", world: dict[str, float] | None = None) -> ApproachSummary:
+              clock: str = "real", world: dict[str, object] | None = None) -> ApproachSummary:
     """Medians over the runs whose both modes succeeded, and the predictions from them."""
     good = [r for r in runs if r.success and r.online is not None and r.step_by_step is not None]
     online = [r.online.total_s for r in good if r.online.total_s is not None]

@@ -99,7 +99,7 @@ class BatchReport:
 
 def report_of(prepared: Prepared, results: list) -> BatchReport:
     request = prepared.request
-    world = request.world.model_dump()
+    world = request.world.described(prepared.cell)
     if request.kind == "approach":
         from server.trials.plots import approach_plots
         from server.trials.report import table_lines, write_results

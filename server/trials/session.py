@@ -2,8 +2,8 @@
 process on a free port, and a small synchronous client of the console's HTTP API.
 
 Each run gets its own session, so runs share nothing: a fresh robot whose world is seeded from
-``--seed`` and the run index, with the trial's offsets, noise and sticking
-(``TELEPROG_ROBOT_WORLD__*``, read by the telerobot the session starts), a fresh link and a fresh console. Nothing is recorded (``--no-record``); the session's
+``--seed`` and the run index, with the trial's offsets, noise, tilt, friction and
+clearance (``TELEPROG_ROBOT_WORLD__*``, read by the telerobot the session starts), a fresh link and a fresh console. Nothing is recorded (``--no-record``); the session's
 output goes to a log file that an error names.
 """
 
@@ -73,7 +73,7 @@ def wait_until(predicate: Callable[[], T], timeout: float, what: str, period: fl
 def world_environment(world: WorldSettings) -> dict[str, str]:
     """The telerobot's settings for this world, as the environment ``teleprog robot`` reads."""
     return {f"TELEPROG_ROBOT_WORLD__{name.upper()}": repr(value) if isinstance(value, float) else str(value)
-            for name, value in world.model_dump().items()}
+            for name, value in world.model_dump().items() if value is not None}
 
 
 class TrialSession:

@@ -4,7 +4,7 @@ process, on one clock stepped by the robot's servo period.
 The parts are the sans-I/O cores the real processes run: the console's ``CommandSender`` (numbering,
 keeping and re-sending units) and its planner (``shared.motion.Interpreter``: the virtual robot),
 ``LinkCore`` (the delay each way), and ``RobotCore`` (receiver and executor over the seeded
-``SimWorld``). What the real processes add (sockets, asyncio, the HTTP API, the page) is left out;
+world, ``robot_sim.worlds``). What the real processes add (sockets, asyncio, the HTTP API, the page) is left out;
 what they do with a statement is not. The console sends a heartbeat every
 ``HEARTBEAT_INTERVAL_S`` as the real one does, so the robot's silence watch runs as in a session.
 
@@ -28,7 +28,8 @@ import numpy as np
 
 from robot_sim.core import RobotCore
 from robot_sim.executor import Executor
-from robot_sim.world import SimWorld, WorldSettings
+from robot_sim.settings import WorldSettings
+from robot_sim.worlds import make_world
 from server.trials.drivers import Clock, SentRecord, settled
 from server.trials.session import TrialError
 from shared.cells.cell import Cell
@@ -85,7 +86,7 @@ class VirtualDriver:
     # -- the session ----------------------------------------------------------------------------
     def _new_robot(self) -> None:
         cell = self.cell
-        executor = Executor(cell, SimWorld(cell, cell.robot, self.world_settings), scene=self.parts.scene)
+        executor = Executor(cell, make_world(cell, self.world_settings), scene=self.parts.scene)
         self.robot = RobotCore(executor, session_id=f"virtual-{self.world_settings.seed}")
         self.dt = executor.dt
         executor.time = self.t  # one clock for the robot and the console
@@ -250,5 +251,6 @@ class VirtualDriver:
 
     # -- what the robot did (for tests and reports) ---------------------------------------------
     @property
-    def world(self) -> SimWorld:
+    def world(self):
+        """The telerobot's world (``robot_sim.worlds``: physics or kinematic)."""
         return self.robot.executor.world

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from shared.cells.physics import PhysicsParams
 from shared.robots.description import LinkShape
 from shared.robots.model import Robot
 from shared.vision.camera import Camera
@@ -70,6 +71,8 @@ class Cell:
     zone_overrides: dict[str, ZoneDistances] = field(default_factory=dict)
     description: str = ""
     cameras: dict[str, Camera] = field(default_factory=dict)
+    physics: PhysicsParams = PhysicsParams()
+    """The telerobot's contact physics (the file's ``[physics]`` table; defaults that run)."""
 
     @property
     def object_names(self) -> tuple[str, ...]:

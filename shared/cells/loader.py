@@ -16,6 +16,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from shared.cells.cell import Cell, CellObject, Feature, ZoneDistances
+from shared.cells.physics import parse_physics
 from shared.errors import FileFormatError, TeleprogError
 from shared.paths import ASSETS_DIR, CELLS_DIR, DEFAULT_CELL  # noqa: F401 - DEFAULT_CELL is also read from here
 from shared.robots.file_numbers import RGB, Angle, Pixels, Rpy, Scale3, Size, Size3, Vec3, file_error, units_context
@@ -110,6 +111,7 @@ class _CellFile(_Strict):
     cameras: list[_CameraSpec] = []
     zones: _ZoneSpec = _ZoneSpec(quasi=100.0, operation=20.0)
     zone_overrides: dict[str, _ZoneSpec] = {}
+    physics: dict[str, object] | None = None  # checked by shared.cells.physics, its keys carry their units
 
 
 def load_cell(path: str | Path) -> Cell:
@@ -219,4 +221,5 @@ def load_cell(path: str | Path) -> Cell:
         zone_overrides=overrides,
         description=spec.description,
         cameras=cameras,
+        physics=parse_physics(spec.physics, str(path)),
     )

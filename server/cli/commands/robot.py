@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 
 def _cmd_robot(args: argparse.Namespace) -> int:
@@ -28,7 +29,10 @@ def _cmd_robot(args: argparse.Namespace) -> int:
             ("seed", args.seed),
             ("object_offset", None if args.object_offset_mm is None else args.object_offset_mm / 1000.0),
             ("force_noise", args.force_noise_n),
-            ("stick_probability", args.stick_probability),
+            ("engine", args.world),
+            ("grasp_tilt", None if args.grasp_tilt_deg is None else math.radians(args.grasp_tilt_deg)),
+            ("friction", args.friction),
+            ("clearance", None if args.clearance_mm is None else args.clearance_mm / 1000.0),
         )
         if v is not None
     }
@@ -52,7 +56,9 @@ def _cmd_robot(args: argparse.Namespace) -> int:
             w = settings.world
             print(f"teleprog robot: {url} (/command, /telemetry) on {settings.cell}; seed {w.seed}, "
                   f"object offsets up to {w.object_offset * 1e3:g} mm, force noise {w.force_noise:g} N, "
-                  f"stick probability {w.stick_probability:g}", flush=True)
+                  f"{w.engine} world" + (f", grasp tilt {math.degrees(w.grasp_tilt):g} deg" if w.grasp_tilt else "")
+                  + (f", friction {w.friction:g}" if w.friction is not None else "")
+                  + (f", clearance {w.clearance * 1e3:g} mm" if w.clearance is not None else ""), flush=True)
 
     try:
         asyncio.run(RobotService(settings).run(on_ready=ready))
@@ -71,7 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="seed of the world's offsets and noise (default 0)")
     p.add_argument("--object-offset-mm", type=float, default=None, help="largest xy offset of pegs and holes from the model")
     p.add_argument("--force-noise-n", type=float, default=None, help="std of force-sensor noise in N")
-    p.add_argument("--stick-probability", type=float, default=None, help="chance the peg sticks in its hole")
+    p.add_argument("--world", choices=("physics", "kinematic"), default=None,
+                   help="the world: MuJoCo contact physics (default) or the kinematic stand-in")
+    p.add_argument("--grasp-tilt-deg", type=float, default=None, help="tilt the peg settles at in the fingers once out of its hole")
+    p.add_argument("--friction", type=float, default=None, help="sliding friction of the cell's contacts (default: the cell's)")
+    p.add_argument("--clearance-mm", type=float, default=None, help="fit of the peg in its hole (default: the cell's geometry)")
     p.add_argument("--heartbeat-s", type=float, default=None, help="interval of the robot's heartbeats in s (default 0.2)")
     p.add_argument("--silence-limit-s", type=float, default=None,
                    help="silence from the console beyond the heartbeat at which the robot stops, in s (default 1)")

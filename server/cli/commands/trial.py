@@ -56,8 +56,8 @@ def _request(args: argparse.Namespace):
     if out is not None and out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     try:
-        world = TrialWorld(object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n,
-                           stick_probability=args.stick_probability)
+        world = TrialWorld(engine=args.world, object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n,
+                           grasp_tilt_deg=args.grasp_tilt_deg, friction=args.friction, clearance_mm=args.clearance_mm)
         request = TrialRequest(kind=args.trial_kind, runs=args.runs, delay_ms=args.delay_ms, seed=args.seed,
                                clock=args.clock, modes=tuple(args.mode) if args.mode else None, world=world,
                                workers=args.workers, scheduler=args.scheduler)
@@ -133,8 +133,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         a.add_argument("--object-offset-mm", type=float, default=2.0, metavar="MM",
                        help="the real peg and holes lie up to MM off the model in x and y (default 2)")
         a.add_argument("--force-noise-n", type=float, default=0.05, metavar="N", help="force sensor noise, std in N (default 0.05)")
-        a.add_argument("--stick-probability", type=float, default=0.05, metavar="P",
-                       help="chance the peg sticks when pulled out of its hole (default 0.05)")
+        a.add_argument("--grasp-tilt-deg", type=float, default=0.0, metavar="DEG",
+                       help="the peg settles this much tilted in the fingers once out of its hole (default 0)")
+        a.add_argument("--friction", type=float, default=None, metavar="MU",
+                       help="sliding friction of the cell's contacts (default: the cell's [physics] value, 0.3)")
+        a.add_argument("--clearance-mm", type=float, default=None, metavar="MM",
+                       help="fit of the peg in its holes (default: the cell's geometry, 0.03 mm)")
+        a.add_argument("--world", choices=("physics", "kinematic"), default="physics",
+                       help="the telerobot's world: MuJoCo contact physics (default) or the kinematic stand-in")
         if kind == "transfer":
             a.add_argument("--mode", action="append", default=None, metavar="MODE",
                            help="composite, free, quasi or operation (repeatable; default all four)")

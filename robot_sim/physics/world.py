@@ -1,0 +1,701 @@
+"""The telerobot's world on contact physics (MuJoCo): the arm, its gripper and the cell as bodies.
+
+The executor drives it one servo period at a time (``servo``): the period's joint target and
+velocity go to the joint servo (a PD law with velocity feed-forward, gravity compensated, run by
+MuJoCo at every physics step), the world steps ``timestep`` at a time to the end of the period,
+and then reports what its sensors read: the joint angles, the wrist force/torque sensor, the
+fingers' opening, the objects' poses. Nothing here decides an outcome: a peg sticks, jams, wedges
+or slips out of the fingers when the contact forces make it.
+
+Seeded differences from the console's model (``WorldSettings``): each static object that carries a
+hole is placed up to ``object_offset`` off its modelled place (what stands in its holes moves with
+it), the wrist sensor is noisy, the peg settles in the fingers tilted by ``grasp_tilt`` once it is
+clear of the hole it was grasped in (a grasp that slipped), and friction and clearance can be set.
+
+A world at rest costs nothing: while the arm holds still, nothing is in flight and no setpoint
+changes, ``servo`` moves the clock on without stepping (the state of a settled world is a fixed
+point of the step, to within ``REST_SPEED``); the first change of setpoint wakes it.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robot_sim.physics.mjcf import ModelLayout, build_mjcf
+from shared.cells.physics import PhysicsParams
+from robot_sim.settings import WorldSettings
+from robot_sim.world import Contact, Hole, PegState
+from shared.cells.cell import Cell
+from shared.errors import FileFormatError, TeleprogError
+from shared.robots.model import Robot
+from shared.spatial import invert, matrix_to_rpy
+from shared.wire.messages import ObjectPose
+
+log = logging.getLogger(__name__)
+
+GRAVITY = 9.81
+REST_SPEED = 1e-4
+"""Joint and object speeds (rad/s, m/s) under which a world with unchanged setpoints is at rest."""
+BRAKE_GAIN = 8.0
+"""How much the servo's damping rises while it brakes to a stop."""
+BRAKE_TIME = 0.05
+"""How long it brakes (s)."""
+MONITOR_PERIOD = 0.002
+"""The force monitor's period (s): the setpoint moves and the wrist is read this often."""
+HOLD_TOLERANCE = 0.002
+"""How much narrower than the held object the fingers may close before it counts as lost (m)."""
+
+
+class PhysicsUnstable(TeleprogError):
+    """The simulation diverged (NaN or a blow-up): the robot stops and reports it."""
+
+
+@dataclass(frozen=True)
+class HoleGeometry:
+    """A hole as the physics world has it: mouth, measured width in x and y, depth (m)."""
+
+    name: str
+    world_T_hole: np.ndarray
+    width: np.ndarray  # (2,) along the hole frame's x and y
+    depth: float
+
+
+class PhysicsWorld:
+    """The real cell around the telerobot, simulated by MuJoCo."""
+
+    engine = "mujoco"
+    physical = True
+
+    def __init__(self, cell: Cell, robot: Robot, settings: WorldSettings | None = None,
+                 q0: np.ndarray | None = None, servo_period: float = 0.01) -> None:
+        import mujoco
+
+        self._mj = mujoco
+        self.cell = cell
+        self.robot = robot
+        self.settings = settings or WorldSettings()
+        s = self.settings
+        where = f"{cell.source} (world settings)"
+        self.params: PhysicsParams = cell.physics.with_overrides(
+            friction=s.friction, clearance=None if s.clearance is None else s.clearance, where=where)
+        self.servo_period = servo_period
+        self.substeps = max(1, int(round(servo_period / self.params.timestep)))
+        self._rng = np.random.default_rng(s.seed)
+        self._plan_world(where)
+        self._build()
+        self.gripper_closed = False
+        self._held: str | None = None
+        self._tilt_pending = 0.0
+        self._payload = 0.0
+        self.time = 0.0
+        self.steps = 0
+        self.skipped_steps = 0
+        self._asleep = False
+        q = np.array(cell.q_home if q0 is None else q0, dtype=float)
+        self.data.qpos[self._qadr] = q
+        self._set_target(q, np.zeros_like(q))
+        self.mj.mj_forward(self.model, self.data)
+        self._last_good = self.data.qpos.copy()
+        w = mujoco.mjtWarning
+        self._bad_warnings = [int(w.mjWARN_BADQACC), int(w.mjWARN_BADQVEL), int(w.mjWARN_BADQPOS)]
+        self._bad_count = 0
+        self.settle(0.3)
+        self._noise = np.zeros(6)
+        self._sense()
+
+    @property
+    def mj(self):
+        return self._mj
+
+    # -- building ---------------------------------------------------------------------------------
+    def _plan_world(self, where: str) -> None:
+        """Seeded placement of the hole carriers and the objects, and each object's size."""
+        cell, s = self.cell, self.settings
+        off = s.object_offset
+        holes = {f.name: f for f in cell.features.values() if f.kind == "hole"}
+        self._carrier_shift: dict[str, np.ndarray] = {}
+        hole_shift: dict[str, np.ndarray] = {}
+        for obj in cell.objects:
+            if obj.movable:
+                continue
+            carried = [h for h in holes.values() if _contains(obj, h.world_T_feature[:3, 3])]
+            if not carried:
+                continue
+            shift = np.array([*self._rng.uniform(-off, off, 2), 0.0]) if off > 0 else np.zeros(3)
+            self._carrier_shift[obj.name] = shift
+            for h in carried:
+                hole_shift[h.name] = shift
+        self.object_poses: dict[str, np.ndarray] = {}
+        self.start_hole: dict[str, str | None] = {}
+        self.object_half: dict[str, np.ndarray] = {}
+        for obj in cell.objects:
+            if not obj.movable:
+                continue
+            T = obj.world_T_object.copy()
+            half = np.asarray(obj.shapes[0].size, dtype=float) / 2.0 if obj.shapes[0].kind == "box" else np.zeros(3)
+            inside = None
+            for h in holes.values():
+                mouth = h.world_T_feature[:3, 3]
+                if np.linalg.norm(T[:2, 3] - mouth[:2]) < 1e-6 and T[2, 3] - half[2] < mouth[2]:
+                    inside = h.name
+            if inside is not None:
+                T[:3, 3] += hole_shift.get(inside, 0.0)
+                T[2, 3] += 2e-5  # let it settle onto the hole's floor
+            elif off > 0:
+                T[:3, 3] += np.array([*self._rng.uniform(-off, off, 2), 0.0])
+            self.object_poses[obj.name] = T
+            self.start_hole[obj.name] = inside
+            self.object_half[obj.name] = half
+        self._hole_shift = hole_shift
+        self._where = where
+
+    def _build(self) -> None:
+        mujoco = self.mj
+        layout = build_mjcf(self._shifted_cell(), self.params, self.object_poses, self.object_half)
+        model = mujoco.MjModel.from_xml_string(layout.xml)
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        self.holes = self._measure_holes(model, data)
+        resized = self._fit_objects()
+        if resized:
+            layout = build_mjcf(self._shifted_cell(), self.params, self.object_poses, self.object_half)
+            model = mujoco.MjModel.from_xml_string(layout.xml)
+            data = mujoco.MjData(model)
+        self.layout: ModelLayout = layout
+        self.model, self.data = model, data
+        dof = self.robot.dof
+        jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"j{i}") for i in range(1, dof + 1)]
+        self._qadr = np.array([model.jnt_qposadr[j] for j in jid])
+        self._vadr = np.array([model.jnt_dofadr[j] for j in jid])
+        self._servo = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"servo{i}")
+                                for i in range(1, dof + 1)])
+        self._ff = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"feedforward{i}")
+                             for i in range(1, dof + 1)])
+        self._grip = [g for g in (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, "grip0"),) if g >= 0]
+        fingers = [j for j in (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"finger{k}") for k in range(2)) if j >= 0]
+        self._finger_q = [model.jnt_qposadr[j] for j in fingers]
+        self._finger_geoms = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"finger{k}/pad")
+                              for k in range(len(fingers))}
+        self._gripper_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "wrist")
+        self._tcp_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+        self._wrist_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "wrist")
+        self._tool_mass = float(model.body_subtreemass[self._gripper_body])
+        self._bodies = {name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in layout.objects}
+        self._object_qadr = {name: model.jnt_qposadr[model.body_jntadr[b]] for name, b in self._bodies.items()}
+        self._object_vadr = {name: model.jnt_dofadr[model.body_jntadr[b]] for name, b in self._bodies.items()}
+        self._geom_body = np.asarray(model.geom_bodyid)
+        self._static_geom = np.asarray(model.geom_group) == 0
+        self._arm_geom = np.asarray(model.geom_contype) == 2
+        self._tool_geom = self._subtree(self._gripper_body)[self._geom_body]  # the gripper's geoms
+        self._pad_geom = np.zeros(model.ngeom, dtype=bool)
+        self._pad_geom[list(self._finger_geoms)] = True
+        self._arm_only_geom = self._arm_geom & ~self._tool_geom
+        self._touching = ""
+        self._tune_servo()
+        self.pegs: dict[str, PegState] = {
+            name: PegState(world_T_peg=self.object_poses[name].copy(), half_size=self.object_half[name].copy(),
+                           in_hole=self.start_hole[name])
+            for name in layout.objects
+        }
+
+    def _shifted_cell(self) -> Cell:
+        from dataclasses import replace
+
+        objects = []
+        for obj in self.cell.objects:
+            shift = self._carrier_shift.get(obj.name)
+            if shift is not None:
+                T = obj.world_T_object.copy()
+                T[:3, 3] += shift
+                obj = replace(obj, world_T_object=T)
+            objects.append(obj)
+        return replace(self.cell, objects=tuple(objects))
+
+    def _measure_holes(self, model, data) -> dict[str, Hole]:
+        """Each hole's real mouth, width and depth, found by rays against the static cell."""
+        mujoco = self.mj
+        out: dict[str, Hole] = {}
+        self.hole_geometry: dict[str, HoleGeometry] = {}
+        groups = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)
+        geomid = np.zeros(1, dtype=np.int32)
+        for feat in self.cell.features.values():
+            if feat.kind != "hole":
+                continue
+            T = feat.world_T_feature.copy()
+            T[:3, 3] += self._hole_shift.get(feat.name, 0.0)
+            axis = T[:3, 2]
+            start = T[:3, 3] + 1e-4 * axis
+            depth = mujoco.mj_ray(model, data, start, -axis, groups, 1, -1, geomid)
+            depth = float(depth - 1e-4) if depth >= 0 else self.settings.hole_depth
+            middle = T[:3, 3] - 0.5 * depth * axis
+            width = np.zeros(2)
+            for k in range(2):
+                d = T[:3, k]
+                a = mujoco.mj_ray(model, data, middle, d, groups, 1, -1, geomid)
+                b = mujoco.mj_ray(model, data, middle, -d, groups, 1, -1, geomid)
+                width[k] = (a + b) if a >= 0 and b >= 0 else np.inf
+            out[feat.name] = Hole(feat.name, T, depth=depth)
+            self.hole_geometry[feat.name] = HoleGeometry(feat.name, T, width, depth)
+        return out
+
+    def _fit_objects(self) -> bool:
+        """Check each object that starts in a hole fits it; narrow it to the asked clearance."""
+        changed = False
+        for name, hole_name in self.start_hole.items():
+            if hole_name is None:
+                continue
+            hole = self.hole_geometry[hole_name]
+            half = self.object_half[name]
+            if not np.all(np.isfinite(hole.width)):
+                continue
+            wide = 2.0 * half[:2]
+            if np.any(wide > hole.width + 1e-9):
+                raise FileFormatError(self.cell.source, (
+                    f"object {name!r} ({wide[0] * 1e3:.3f} x {wide[1] * 1e3:.3f} mm) is wider than its hole "
+                    f"{hole_name} ({hole.width[0] * 1e3:.3f} x {hole.width[1] * 1e3:.3f} mm)"))
+            if self.params.clearance is not None:
+                new = hole.width / 2.0 - self.params.clearance / 2.0
+                if np.any(new <= 0.0):
+                    raise FileFormatError(self._where, f"a clearance of {self.params.clearance * 1e3:g} mm leaves "
+                                                       f"no peg in {hole_name}")
+                self.object_half[name] = np.array([new[0], new[1], half[2]])
+                changed = True
+        return changed
+
+    def clearance(self, name: str) -> float | None:
+        """The fit (m) of an object in the hole it started in: hole width minus object width."""
+        hole = self.start_hole.get(name)
+        if hole is None:
+            return None
+        return float(np.min(self.hole_geometry[hole].width - 2.0 * self.object_half[name][:2]))
+
+    def _tune_servo(self) -> None:
+        """Joint servo gains from the arm's inertia at its home pose: each joint a critically
+        damped second-order system of ``joint_bandwidth`` (its diagonal of the mass matrix)."""
+        mujoco = self.mj
+        m, d = self.model, self.data
+        d.qpos[self._qadr] = self.cell.q_home
+        mujoco.mj_forward(m, d)
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        inertia = np.diag(M)[self._vadr]
+        w = 2.0 * math.pi * self.params.joint_bandwidth
+        kp = inertia * w * w
+        kv = 2.0 * self.params.joint_damping_ratio * inertia * w
+        m.actuator_gainprm[self._servo, 0] = kp
+        m.actuator_biasprm[self._servo, 1] = -kp
+        m.actuator_biasprm[self._servo, 2] = -kv
+        m.actuator_gear[self._ff, 0] = kv  # velocity feed-forward: kv * qd_target
+        self.kp, self.kv = kp, kv
+        self._brake_until: float | None = None
+
+    # -- the servo --------------------------------------------------------------------------------
+    def _set_target(self, q: np.ndarray, qd: np.ndarray) -> None:
+        self._target = np.asarray(q, dtype=float).copy()
+        self._target_qd = np.asarray(qd, dtype=float).copy()
+        self.data.ctrl[self._servo] = self._target
+        self.data.ctrl[self._ff] = self._target_qd
+
+    def _end_brake(self) -> None:
+        """The servo's own gains again (the brake's time is over, or a new motion starts)."""
+        m = self.model
+        m.actuator_gainprm[self._servo, 0] = self.kp
+        m.actuator_biasprm[self._servo, 1] = -self.kp
+        m.actuator_biasprm[self._servo, 2] = -self.kv
+        self._brake_until = None
+
+    @property
+    def target(self) -> np.ndarray:
+        """The joint servo's present setpoint."""
+        return self._target.copy()
+
+    def servo(self, q: np.ndarray, qd: np.ndarray | None = None, stop_force: float | None = None,
+              guarded: bool = False) -> bool:
+        """One servo period towards joint target ``q`` (velocity ``qd``, feed-forward).
+
+        The setpoint moves from the last one to ``q`` in ``MONITOR_PERIOD`` slices. With
+        ``stop_force``, the force monitor reads the wrist after each slice and, once the force
+        beyond the held object's weight passes it, holds the arm where it is for the rest of the
+        period (a guarded move stops within a millisecond, not a servo period). True if it did."""
+        qd = np.zeros_like(q) if qd is None else qd
+        if np.array_equal(q, self._target) and np.array_equal(qd, self._target_qd):
+            self.advance(self.servo_period)
+            return False
+        self._asleep = False
+        if self._brake_until is not None:
+            self._end_brake()
+        start = self._target
+        # the force monitor slices the period where a force can build up: a guarded motion, or
+        # the tool already touching something; in free space the servo reads it once a period
+        slices = max(1, int(round(self.servo_period / MONITOR_PERIOD))) if stop_force is not None and (
+            guarded or self._touching) else 1
+        for k in range(1, slices + 1):
+            self._set_target(start + (q - start) * (k / slices), qd)
+            self.advance(self.servo_period / slices, sense=k == slices)
+            if stop_force is not None and self._force_beyond_payload() > stop_force:
+                self.hold()
+                if k < slices:
+                    self.advance(self.servo_period * (slices - k) / slices)
+                else:
+                    self._after_step()
+                return True
+        return False
+
+    def _force_beyond_payload(self) -> float:
+        """The wrist force's magnitude beyond the tool's and the held object's weight (N), read
+        straight from the sensor (the force monitor's fast path: no contact scan, no noise)."""
+        d = self.data
+        R = d.site_xmat[self._wrist_site].reshape(3, 3)
+        force = -(R @ d.sensordata[0:3])
+        force[2] += GRAVITY * (self._tool_mass + self._payload)
+        return float(np.sqrt(force @ force))
+
+    def hold(self) -> None:
+        """Hold the arm where it is now (a stop): the setpoint becomes the measured pose, at rest,
+        and the servo brakes (damping only, ``BRAKE_GAIN`` times the servo's, for ``BRAKE_TIME``;
+        gravity stays compensated) so the arm halts within a servo period instead of coasting
+        through the servo's own settling and back."""
+        self._set_target(self.q.copy(), np.zeros(self.robot.dof))
+        m = self.model
+        m.actuator_gainprm[self._servo, 0] = 0.0  # braking: damping only, no pull back to the stop point
+        m.actuator_biasprm[self._servo, 1] = 0.0
+        m.actuator_biasprm[self._servo, 2] = -BRAKE_GAIN * self.kv
+        self._brake_until = self.time + BRAKE_TIME
+        self._asleep = False
+
+    def set_gripper(self, closed: bool) -> None:
+        self.gripper_closed = closed
+        for g in self._grip:
+            self.data.ctrl[g] = self.layout.finger_travel if closed else 0.0
+        self._asleep = False
+
+    def advance(self, seconds: float, sense: bool = True) -> None:
+        """Let ``seconds`` pass with the present setpoints (no steps while the world is at rest)."""
+        n = max(1, int(round(seconds / self.params.timestep)))
+        if self._asleep:
+            self.time += n * self.params.timestep
+            self.skipped_steps += n
+            self._sense()
+            return
+        self.mj.mj_step(self.model, self.data, nstep=n)
+        self.steps += n
+        self.time += n * self.params.timestep
+        if self._brake_until is not None and self.time >= self._brake_until:
+            self._end_brake()
+            self._set_target(self.q, np.zeros(self.robot.dof))  # hold where the brake stopped it
+        if sense:
+            d = self.data
+            speed = float(np.max(np.abs(d.qvel)))
+            if not speed < 1e3 or self._diverged():  # NaN fails the first; MuJoCo resets a diverged state itself
+                self._restore_last_good()
+                raise PhysicsUnstable(f"the physics simulation became unstable at t = {self.time:.3f} s "
+                                      f"(speeds over 1000 or not finite); the world is back at its last "
+                                      f"stable state, at rest, and the arm holds there")
+            self._last_good = d.qpos.copy()
+            self._after_step()
+            self._asleep = speed < REST_SPEED and float(np.max(np.abs(d.qacc))) < 100 * REST_SPEED
+
+    def _diverged(self) -> bool:
+        """MuJoCo met a NaN, an infinity or a huge value since the last look (it then resets the
+        state to the model's initial pose, which the robot must never take for the real arm)."""
+        count = sum(int(self.data.warning[k].number) for k in self._bad_warnings)
+        diverged = count > self._bad_count
+        self._bad_count = count
+        return diverged
+
+    def _restore_last_good(self) -> None:
+        """Back to the last state that sensed finite and sane, every speed zero."""
+        d = self.data
+        d.qpos[:] = self._last_good
+        d.qvel[:] = 0.0
+        d.act[:] = 0.0 if d.act.size else d.act
+        self.mj.mj_forward(self.model, d)
+        self._set_target(self.q, np.zeros(self.robot.dof))
+
+    def settle(self, seconds: float) -> None:
+        """Let the world come to rest (building it, after a grasp)."""
+        self.advance(seconds)
+
+    @property
+    def asleep(self) -> bool:
+        return self._asleep
+
+    # -- sensing ----------------------------------------------------------------------------------
+    @property
+    def q(self) -> np.ndarray:
+        return np.array(self.data.qpos[self._qadr])
+
+    @property
+    def qd(self) -> np.ndarray:
+        return np.array(self.data.qvel[self._vadr])
+
+    def wrist_position(self) -> np.ndarray:
+        """Where the wrist sensor is (world, m): the point its torques are about."""
+        return np.array(self.data.site_xpos[self._wrist_site])
+
+    def world_T_tcp(self, q: np.ndarray | None = None) -> np.ndarray:
+        if q is not None:
+            return self.cell.world_T_base @ self.robot.fk(q) @ self.cell.flange_T_tcp
+        T = np.eye(4)
+        T[:3, :3] = self.data.site_xmat[self._tcp_site].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self._tcp_site]
+        return T
+
+    def _object_pose(self, name: str) -> np.ndarray:
+        b = self._bodies[name]
+        T = np.eye(4)
+        T[:3, :3] = self.data.xmat[b].reshape(3, 3)
+        T[:3, 3] = self.data.xpos[b]
+        return T
+
+    def _after_step(self) -> None:
+        for name, peg in self.pegs.items():
+            peg.world_T_peg = self._object_pose(name)
+        if (self._held is not None and self._tilt_pending and self._hole_of(self._held) is None
+                and not self._touching_static(self._held)):
+            self._apply_tilt(self._held, self._tilt_pending)
+            self._tilt_pending = 0.0
+        for name, peg in self.pegs.items():
+            peg.in_hole = self._hole_of(name)
+            peg.held = name == self._held
+            peg.tool_T_peg = invert(self.world_T_tcp()) @ peg.world_T_peg if peg.held else None
+        self._touching = self._touching_what()
+        self._sense()
+
+    def _sense(self) -> None:
+        """The wrist sensor: force and torque on the tool in the world frame, the gripper's own
+        weight taken off (a tared sensor), with noise."""
+        d = self.data
+        R = d.site_xmat[self._wrist_site].reshape(3, 3)
+        f_site = np.array(d.sensordata[0:3])
+        t_site = np.array(d.sensordata[3:6])
+        # the sensor reads what the arm exerts on the gripper; the world exerts the opposite
+        weight = np.array([0.0, 0.0, -GRAVITY * self._tool_mass])
+        lever = d.subtree_com[self._gripper_body] - d.site_xpos[self._wrist_site]
+        force = -(R @ f_site) - weight
+        torque = -(R @ t_site) - np.cross(lever, weight)
+        sigma = self.settings.force_noise
+        noise = self._rng.normal(0.0, sigma, 6) if sigma > 0 else np.zeros(6)
+        self.wrench_clean = np.concatenate([force, torque])
+        self.wrench = self.wrench_clean + noise
+
+    def contact(self, q: np.ndarray | None = None, noise: bool = True) -> Contact:
+        """What the force sensor feels now beyond the held object's weight (N, world frame).
+        ``q`` is ignored: a physical sensor reads the present, not a pose asked about."""
+        w = self.wrench if noise else self.wrench_clean
+        force = w[:3] - np.array([0.0, 0.0, -GRAVITY * self._payload])
+        return Contact(force, touching=bool(self._touching), what=self._touching)
+
+    def _contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        d = self.data
+        n = d.ncon
+        if n == 0:
+            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+        g = np.asarray(d.contact.geom[:n])
+        dist = np.asarray(d.contact.dist[:n])
+        g = g[dist < 1e-5]
+        return g[:, 0], g[:, 1]
+
+    def _touching_static(self, name: str) -> bool:
+        g1, g2 = self._contacts()
+        b = self._bodies[name]
+        mine = (self._geom_body[g1] == b) & self._static_geom[g2] | (self._geom_body[g2] == b) & self._static_geom[g1]
+        return bool(np.any(mine))
+
+    def _touching_what(self) -> str:
+        """What the tool (the gripper, the fingers, a held object) touches in the cell, or ''."""
+        g1, g2 = self._contacts()
+        if g1.size == 0:
+            return ""
+        tool = self._tool_geom.copy()
+        if self._held is not None:
+            tool |= self._geom_body == self._bodies[self._held]
+        mask_tool1 = tool[g1]
+        mask_tool2 = tool[g2]
+        hits = (mask_tool1 & ~mask_tool2) | (mask_tool2 & ~mask_tool1)
+        if not np.any(hits):
+            return ""
+        k = int(np.flatnonzero(hits)[0])
+        other = g2[k] if mask_tool1[k] else g1[k]
+        return self._geom_label(int(other))
+
+    def arm_contact(self) -> str:
+        """A link of the arm (not the gripper) touching the cell or an object, or ''."""
+        g1, g2 = self._contacts()
+        if g1.size == 0:
+            return ""
+        arm1 = self._arm_only_geom[g1]
+        arm2 = self._arm_only_geom[g2]
+        hits = np.flatnonzero(arm1 | arm2)
+        if hits.size == 0:
+            return ""
+        k = int(hits[0])
+        a, b = (g1[k], g2[k]) if arm1[k] else (g2[k], g1[k])
+        return f"{self._geom_label(int(a))} touches {self._geom_label(int(b))}"
+
+    def _subtree(self, root: int) -> np.ndarray:
+        parents = np.asarray(self.model.body_parentid)
+        inside = np.zeros(self.model.nbody, dtype=bool)
+        inside[root] = True
+        for b in range(root + 1, self.model.nbody):
+            inside[b] = inside[parents[b]]
+        return inside
+
+    def _geom_label(self, geom: int) -> str:
+        name = self.mj.mj_id2name(self.model, self.mj.mjtObj.mjOBJ_GEOM, geom) or f"geom {geom}"
+        return name.split("/")[0]
+
+    def _hole_of(self, name: str) -> str | None:
+        """The hole an object's foot is inside (below the mouth, within the hole's width)."""
+        peg = self.pegs[name]
+        foot = peg.world_T_peg[:3, 3] - peg.world_T_peg[:3, 2] * peg.half_size[2]
+        for hole in self.holes.values():
+            local = invert(hole.world_T_hole) @ np.array([*foot, 1.0])
+            geo = self.hole_geometry[hole.name]
+            if local[2] < 0.0 and np.all(np.abs(local[:2]) <= geo.width / 2.0 + 1e-3):
+                return hole.name
+        return None
+
+    # -- the gripper ------------------------------------------------------------------------------
+    def finger_opening(self) -> float:
+        """Gap between the finger pads (m)."""
+        closed = sum(float(self.data.qpos[a]) for a in self._finger_q)
+        return self.layout.finger_open_gap - closed
+
+    def held_by_fingers(self) -> str | None:
+        """The object both pads touch, if any."""
+        g1, g2 = self._contacts()
+        if g1.size == 0 or len(self._finger_geoms) < 2:
+            return None
+        pad = np.concatenate([g1, g2])
+        other = np.concatenate([self._geom_body[g2], self._geom_body[g1]])
+        on_pad = self._pad_geom[pad]
+        for name, b in self._bodies.items():
+            if np.unique(pad[on_pad & (other == b)]).size == 2:
+                return name
+        return None
+
+    def close_gripper(self, name: str | None) -> None:
+        self.set_gripper(True)
+        self._grasp_name = name
+
+    def grasp_result(self) -> tuple[bool, str]:
+        """After the fingers closed: whether they hold an object, and a sentence for the report."""
+        holding = self.held_by_fingers()
+        opening = self.finger_opening()
+        if holding is None or (self._grasp_name is not None and holding != self._grasp_name):
+            what = f"the fingers closed to {opening * 1e3:.1f} mm on nothing"
+            if holding is not None:
+                what = f"the fingers closed on {holding}, not {self._grasp_name}"
+            return False, f"gripper closed: {what}"
+        self._held = holding
+        self._payload = self.object_mass(holding)
+        self._tilt_pending = self.settings.grasp_tilt
+        self._after_step()
+        peg = self.pegs[holding]
+        axis_offset = np.linalg.norm((invert(peg.world_T_peg) @ self.world_T_tcp())[:2, 3])
+        return True, f"holding {holding} ({axis_offset * 1e3:.2f} mm off its axis, fingers {opening * 1e3:.2f} mm apart)"
+
+    def open_gripper(self) -> None:
+        self.set_gripper(False)
+
+    def release_result(self) -> str:
+        name = self._held
+        self._held = None
+        self._payload = 0.0
+        self._after_step()
+        if name is None:
+            return "gripper opened, holding nothing"
+        where = self.pegs[name].in_hole
+        return f"released {name} in {where}" if where else f"released {name}"
+
+    def lost(self) -> str | None:
+        """Why the held object is no longer held (fingers closed past it, or off it), or None."""
+        if self._held is None or not self.gripper_closed:
+            return None
+        name = self._held
+        width = 2.0 * float(np.min(self.object_half[name][:2]))
+        if self.finger_opening() < width - HOLD_TOLERANCE or self.held_by_fingers() != name:
+            self._held = None
+            self._payload = 0.0
+            self._after_step()
+            return f"{name} lost from the gripper (fingers {self.finger_opening() * 1e3:.1f} mm apart)"
+        return None
+
+    def held_peg(self) -> tuple[str, PegState] | None:
+        if self._held is None:
+            return None
+        return self._held, self.pegs[self._held]
+
+    def object_mass(self, name: str) -> float:
+        return float(self.model.body_subtreemass[self._bodies[name]])
+
+    def _apply_tilt(self, name: str, tilt: float) -> None:
+        """The object turns in the fingers by ``tilt`` about the line through both pads."""
+        mujoco = self.mj
+        world_T_tcp = self.world_T_tcp()
+        axis = world_T_tcp[:3, 0]  # the fingers close along the tool's x
+        c, s = math.cos(tilt), math.sin(tilt)
+        K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        R = np.eye(3) + s * K + (1 - c) * K @ K
+        T = self._object_pose(name)
+        pivot = world_T_tcp[:3, 3]
+        T[:3, :3] = R @ T[:3, :3]
+        T[:3, 3] = pivot + R @ (T[:3, 3] - pivot)
+        a = self._object_qadr[name]
+        self.data.qpos[a:a + 3] = T[:3, 3]
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, T[:3, :3].ravel())
+        self.data.qpos[a + 3:a + 7] = quat
+        mujoco.mj_forward(self.model, self.data)
+        self.pegs[name].world_T_peg = T
+
+    # -- the executor's queries (kinematic-world interface) -----------------------------------------
+    def follow(self, q: np.ndarray) -> None:  # noqa: ARG002 - the physics carries the objects
+        return None
+
+    def perceived_objects(self) -> tuple[ObjectPose, ...]:
+        base_T_world = invert(self.cell.world_T_base)
+        out = []
+        for name, peg in self.pegs.items():
+            base_T_peg = base_T_world @ peg.world_T_peg
+            out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
+                                  base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
+        return tuple(out)
+
+    def describe(self) -> dict[str, object]:
+        """The engine and every parameter it runs with (a trial's summary)."""
+        return {
+            "engine": self.engine,
+            "mujoco_version": self.mj.__version__,
+            **self.params.as_dict(),
+            "servo_substeps": self.substeps,
+            "clearance_mm": {n: round(c * 1e3, 4) for n in self.pegs if (c := self.clearance(n)) is not None},
+            "inertias": self.layout.inertia_source,
+        }
+
+
+def _contains(obj, point: np.ndarray, tol: float = 1e-6) -> bool:
+    """Whether ``point`` lies in the object's bounding box (in its own frame, all shapes
+    together): a hole's mouth lies in the box of the plate it is cut into."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for s in obj.shapes:
+        if s.kind == "box":
+            half = np.asarray(s.size) / 2.0
+        elif s.kind in ("cylinder", "capsule"):
+            half = np.array([s.radius, s.radius, s.length / 2.0 + (s.radius if s.kind == "capsule" else 0.0)])
+        elif s.kind == "sphere":
+            half = np.full(3, s.radius)
+        else:
+            continue
+        extent = np.abs(s.link_T_shape[:3, :3]) @ half
+        lo = np.minimum(lo, s.link_T_shape[:3, 3] - extent)
+        hi = np.maximum(hi, s.link_T_shape[:3, 3] + extent)
+    if not np.all(np.isfinite(lo)):
+        return False
+    local = (invert(obj.world_T_object) @ np.array([*point, 1.0]))[:3]
+    return bool(np.all(local >= lo - tol) and np.all(local <= hi + tol))
