@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_sim.world import SimWorld, WorldSettings
+from robot_sim.settings import WorldSettings
+from robot_sim.worlds import make_world
 from shared.cells.loader import DEFAULT_CELL, load_cell
 import support
 from support import start_console, stop_process
@@ -42,7 +43,7 @@ def up(tmp_path, monkeypatch):
 
 def test_objects_come_from_the_robot_and_resync_takes_them(up) -> None:
     cell = load_cell(DEFAULT_CELL)
-    truth = SimWorld(cell, cell.robot, WorldSettings(seed=SEED, object_offset=OFFSET)).pegs["peg"].world_T_peg
+    truth = make_world(cell, WorldSettings(seed=SEED, object_offset=OFFSET)).pegs["peg"].world_T_peg  # physics, settled
     model = cell.object("peg").world_T_object
     assert np.linalg.norm(truth[:3, 3] - model[:3, 3]) > 0.002  # the premise of the test
     wait_for("the link", lambda: call(up, "GET", "/api/link")["connected"])
@@ -54,7 +55,7 @@ def test_objects_come_from_the_robot_and_resync_takes_them(up) -> None:
     wait_for("the statement done", lambda: (s := call(up, "GET", "/api/sent"))["pending"] == 0 and s["items"])
     assert call(up, "GET", "/api/sent")["items"][-1]["status"] == "done"
     remote = wait_for("the robot's objects", lambda: (r := call(up, "GET", "/api/remote")) and "peg" in r["object_poses"] and r)
-    np.testing.assert_allclose(np.array(remote["object_poses"]["peg"]), truth, atol=1e-9)
+    np.testing.assert_allclose(np.array(remote["object_poses"]["peg"]), truth, atol=2e-5)  # at rest in its hole
     assert remote["held"] is None
     divergence = wait_for("the divergence", lambda: (d := call(up, "GET", "/api/divergence"))["diverged"] and d)
     assert divergence["object"] == "peg"

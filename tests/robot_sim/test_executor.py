@@ -1,5 +1,8 @@
-"""The telerobot's executor in virtual time: the peg transfer, force-guided search, surprises and
-recovery, and the rule that every statement ends in exactly one final state."""
+"""The telerobot's executor in virtual time on the kinematic world (``robot_sim.world``, fast and
+exact): the peg transfer, force-guided search, surprises and recovery, and the rule that every
+statement ends in exactly one final state. What the contact physics makes happen (sticking,
+jamming, a lost peg, the wrist's reading, stopping the physical arm) is tested on the physics
+world in ``test_physics_world``."""
 
 from __future__ import annotations
 
@@ -13,7 +16,6 @@ from robot_sim.world import SimWorld, WorldSettings
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.parser import parse_program
 from shared.paths import ASSETS_DIR
-from shared.robots.ik import solve_ik
 from shared.wire.messages import RobotState, StatementState
 
 CELL = load_cell(DEFAULT_CELL)
@@ -72,62 +74,6 @@ def test_a_hole_far_from_the_model_is_found_by_the_force_search() -> None:
     assert done[12].state is StatementState.DONE and "seated" in done[12].reason
     assert ex.world.pegs["peg"].in_hole == "HOLE2"
     assert ex.time > quick.time  # the search took extra motion
-
-
-def test_stuck_peg_fails_the_extraction_and_waits_for_the_operator() -> None:
-    ex = make(PEG_TRANSFER, seed=1, stick_probability=1.0)
-    done = finals(ex.run_until_idle())
-    assert done[6].state is StatementState.FAILED and "stuck" in done[6].reason
-    assert done[6].snapshot.state is RobotState.FAULT
-    assert ex.state is RobotState.FAULT and 7 not in done
-    q = ex.q.copy()
-    for _ in range(50):  # nothing moves while the robot waits
-        assert ex.tick() == []
-    np.testing.assert_array_equal(ex.q, q)
-    applied, _ = ex.abort()
-    assert applied
-    done.update(finals(ex.tick()))  # the abort reports come out with the next tick
-    flushed = [n for n, e in done.items() if e.state is StatementState.ABORTED]
-    assert flushed == list(range(7, len(PEG_TRANSFER) + 1))
-
-
-@pytest.mark.parametrize("idle_ticks", [0, 1, 2, 3, 5, 7])
-def test_a_stuck_peg_fails_the_extraction_whatever_servo_phase_it_starts_at(idle_ticks: int) -> None:
-    """A servo step may lift the peg past the jam's strength (stick_force) in one go; the force
-    the monitor reads then still passes the extraction's limit on the way, so the peg stays stuck
-    and the task fails. (It used to free the peg inside the force query, and which of these
-    phases failed depended on where the step fell.)"""
-    ex = make(PEG_TRANSFER[:5], seed=1, stick_probability=1.0)  # to the grasp
-    done = finals(ex.run_until_idle())
-    assert all(e.state is StatementState.DONE for e in done.values())
-    for _ in range(idle_ticks):
-        ex.tick()
-    assert PEG_TRANSFER[5].name == "extract_peg"
-    ex.enqueue(6, PEG_TRANSFER[5])
-    done = finals(ex.run_until_idle())
-    assert done[6].state is StatementState.FAILED and "stuck" in done[6].reason
-    assert ex.world.pegs["peg"].stuck and ex.world.pegs["peg"].in_hole == "HOLE1"
-
-
-def test_a_jammed_peg_frees_only_when_the_arm_really_pulls_past_its_strength() -> None:
-    ex = make(PEG_TRANSFER[:5], seed=1, stick_probability=1.0)  # to the grasp
-    ex.run_until_idle()
-    world, peg = ex.world, ex.world.pegs["peg"]
-    lift = 1.5 * world.settings.stick_force / world.settings.contact_stiffness  # 1.5 x the jam's strength
-    world_T_up = _up(lift) @ world.world_T_tcp(ex.q)
-    base_T_flange = np.linalg.inv(CELL.world_T_base) @ world_T_up @ np.linalg.inv(CELL.flange_T_tcp)
-    q_up = min(solve_ik(CELL.robot, base_T_flange), key=lambda q: float(np.linalg.norm(q - ex.q)))
-    felt = world.contact(q_up, noise=False)
-    assert felt.magnitude == pytest.approx(world.settings.stick_force)  # reading does not free it
-    assert peg.stuck
-    world.follow(q_up)  # the arm goes there: the jam gives
-    assert not peg.stuck
-
-
-def _up(dz: float) -> np.ndarray:
-    T = np.eye(4)
-    T[2, 3] = dz
-    return T
 
 
 def test_unplanned_contact_stops_the_arm_and_resume_goes_on() -> None:

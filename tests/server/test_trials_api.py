@@ -29,7 +29,7 @@ def test_a_batch_runs_on_the_consoles_cell_and_reports_its_table_summary_and_plo
     app = create_app(ConsoleSettings(no_robot=True), build_page=False)
     with TestClient(app) as client:
         started = client.post("/api/trials", json={"kind": "extract", "runs": 3, "seed": 4,
-                                                   "world": {"stick_probability": 0.5}})
+                                                   "world": {"friction": 0.45}})
         assert started.status_code == 200, started.text
         batch = started.json()
         assert batch["state"] == "running" and batch["runs_total"] == 3 and batch["request"]["clock"] == "virtual"
@@ -41,7 +41,7 @@ def test_a_batch_runs_on_the_consoles_cell_and_reports_its_table_summary_and_plo
         assert summary["kind"] == "extract" and [r["world_seed"] for r in summary["runs"]] == [4000, 4001, 4002]
         assert any(line.startswith("| supervised | 3 |") for line in view["table"])
         # the same runs in this process give the same results
-        world = TrialWorld(stick_probability=0.5)
+        world = TrialWorld(friction=0.45)
         program = transfer_program(DEFAULT_CELL)
         here = [run_spec(RunSpec("extract", "supervised", i, world.settings(world_seed(4, i)), 3000.0, "virtual", "/tmp",
                                  program=program)) for i in range(3)]
