@@ -7,7 +7,7 @@ is a fresh session: with ``--clock real`` (default) a whole ``teleprog up`` (tel
 console) driven through the console's HTTP API; with ``--clock virtual`` the console's sender and
 planner, the link and the telerobot in one process on a virtual clock (``server.trials``).
 
-Run ``i``'s world is seeded ``S*1000+i`` with the offsets, noise and sticking given, so a run is
+Run ``i``'s world is seeded ``S*1000+i`` with the offsets, noise, tilt, friction and clearance given, so a run is
 repeatable alone. Runs go to ``--workers K`` local processes or a Dask cluster (``--scheduler``).
 ``--json`` prints one document (``{"summary": ...}``); ``--out DIR`` writes ``results.json``,
 ``results.csv`` and the plots. The approach trial exits 1 when a run failed; for the other kinds a
