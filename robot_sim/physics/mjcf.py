@@ -23,7 +23,6 @@ simplified shapes overlap at every joint); the objects collide with everything.
 from __future__ import annotations
 
 import logging
-import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -301,7 +300,8 @@ def build_mjcf(cell: Cell, params: PhysicsParams, object_poses: dict[str, np.nda
     xml = "\n".join([
         f"<mujoco model={quoteattr(cell.name)}>",
         '<compiler angle="radian" autolimits="true" balanceinertia="true"/>',
-        os.environ.get("TP_OPT", f'<option timestep="{p.timestep:.6g}" integrator="implicitfast" gravity="0 0 -9.81" cone="elliptic" impratio="5"><flag multiccd="enable"/></option>').replace("TS", f"{p.timestep:.6g}"),
+        f'<option timestep="{p.timestep:.6g}" integrator="implicitfast" gravity="0 0 -9.81" cone="elliptic" '
+        f'impratio="5"><flag multiccd="enable" autoreset="disable"/></option>',
         f'<default><geom {solref} solimp="0.95 0.99 0.0002 0.5 2"/></default>',
         "<asset>", *meshes, "</asset>",
         "<worldbody>", *world, "</worldbody>",

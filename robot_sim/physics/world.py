@@ -19,6 +19,7 @@ point of the step, to within ``REST_SPEED``); the first change of setpoint wakes
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from dataclasses import dataclass
@@ -40,6 +41,8 @@ log = logging.getLogger(__name__)
 GRAVITY = 9.81
 REST_SPEED = 1e-4
 """Joint and object speeds (rad/s, m/s) under which a world with unchanged setpoints is at rest."""
+NOISE_TABLE = 1 << 15
+"""Servo periods of sensor noise drawn per world (at 100 Hz, 5.5 minutes before it repeats)."""
 BRAKE_GAIN = 8.0
 """How much the servo's damping rises while it brakes to a stop."""
 BRAKE_TIME = 0.05
@@ -64,6 +67,57 @@ class HoleGeometry:
     depth: float
 
 
+_COMPILED: dict[tuple, tuple[object, ModelLayout, dict[str, HoleGeometry]]] = {}
+"""Compiled models by (cell file, physics parameters, object sizes): a world copies one."""
+
+
+def _halves_key(halves: dict[str, np.ndarray]) -> tuple:
+    return tuple((name, tuple(float(v) for v in h)) for name, h in sorted(halves.items()))
+
+
+def _compiled(cell: Cell, params: PhysicsParams, halves: tuple) -> tuple[object, ModelLayout, dict[str, HoleGeometry]]:
+    """The cell's model as its file places everything (no seeded offsets), compiled once per
+    process, with its holes measured by rays against the static geometry."""
+    key = (cell.source, cell.name, params, halves)
+    if key in _COMPILED:
+        return _COMPILED[key]
+    import mujoco
+
+    poses = {}
+    for obj in cell.objects:
+        if obj.movable:
+            T = obj.world_T_object.copy()
+            T[2, 3] += 2e-5  # let it settle onto what it stands on
+            poses[obj.name] = T
+    layout = build_mjcf(cell, params, poses, {name: np.array(h) for name, h in halves})
+    model = mujoco.MjModel.from_xml_string(layout.xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    holes: dict[str, HoleGeometry] = {}
+    groups = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)  # the static cell only
+    geomid = np.zeros(1, dtype=np.int32)
+    for feat in cell.features.values():
+        if feat.kind != "hole":
+            continue
+        T = feat.world_T_feature.copy()
+        axis = T[:3, 2]
+        start = T[:3, 3] + 1e-4 * axis
+        depth = mujoco.mj_ray(model, data, start, -axis, groups, 1, -1, geomid)
+        depth = float(depth - 1e-4) if depth >= 0 else 0.0
+        middle = T[:3, 3] - 0.5 * depth * axis
+        width = np.zeros(2)
+        for k in range(2):
+            d = T[:3, k]
+            a = mujoco.mj_ray(model, data, middle, d, groups, 1, -1, geomid)
+            b = mujoco.mj_ray(model, data, middle, -d, groups, 1, -1, geomid)
+            width[k] = (a + b) if a >= 0 and b >= 0 else np.inf
+        holes[feat.name] = HoleGeometry(feat.name, T, width, depth)
+    if len(_COMPILED) > 16:
+        _COMPILED.clear()
+    _COMPILED[key] = (model, layout, holes)
+    return _COMPILED[key]
+
+
 class PhysicsWorld:
     """The real cell around the telerobot, simulated by MuJoCo."""
 
@@ -85,6 +139,7 @@ class PhysicsWorld:
         self.servo_period = servo_period
         self.substeps = max(1, int(round(servo_period / self.params.timestep)))
         self._rng = np.random.default_rng(s.seed)
+        self._noise_table: np.ndarray | None = None
         self._plan_world(where)
         self._build()
         self.gripper_closed = False
@@ -154,17 +209,29 @@ class PhysicsWorld:
         self._where = where
 
     def _build(self) -> None:
+        """The compiled model of the cell as the file has it (built once per process and cell,
+        ``_compiled``), copied, with this world's seeded placement applied to the copy: each hole
+        carrier's geoms moved, the objects put where they stand."""
         mujoco = self.mj
-        layout = build_mjcf(self._shifted_cell(), self.params, self.object_poses, self.object_half)
-        model = mujoco.MjModel.from_xml_string(layout.xml)
+        template, layout, holes = _compiled(self.cell, self.params, _halves_key(self.object_half))
+        self._set_holes(holes)
+        if self._fit_objects():
+            template, layout, _ = _compiled(self.cell, self.params, _halves_key(self.object_half))
+        model = copy.deepcopy(template)
+        for obj_name, shift in self._carrier_shift.items():
+            for g in range(model.ngeom):
+                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+                if name.startswith(f"{obj_name}/"):
+                    model.geom_pos[g] += shift
         data = mujoco.MjData(model)
-        mujoco.mj_forward(model, data)
-        self.holes = self._measure_holes(model, data)
-        resized = self._fit_objects()
-        if resized:
-            layout = build_mjcf(self._shifted_cell(), self.params, self.object_poses, self.object_half)
-            model = mujoco.MjModel.from_xml_string(layout.xml)
-            data = mujoco.MjData(model)
+        for name in layout.objects:
+            b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+            a = model.jnt_qposadr[model.body_jntadr[b]]
+            T = self.object_poses[name]
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T[:3, :3]).ravel())
+            data.qpos[a:a + 3] = T[:3, 3]
+            data.qpos[a + 3:a + 7] = quat
         self.layout: ModelLayout = layout
         self.model, self.data = model, data
         dof = self.robot.dof
@@ -202,45 +269,16 @@ class PhysicsWorld:
             for name in layout.objects
         }
 
-    def _shifted_cell(self) -> Cell:
-        from dataclasses import replace
-
-        objects = []
-        for obj in self.cell.objects:
-            shift = self._carrier_shift.get(obj.name)
-            if shift is not None:
-                T = obj.world_T_object.copy()
-                T[:3, 3] += shift
-                obj = replace(obj, world_T_object=T)
-            objects.append(obj)
-        return replace(self.cell, objects=tuple(objects))
-
-    def _measure_holes(self, model, data) -> dict[str, Hole]:
-        """Each hole's real mouth, width and depth, found by rays against the static cell."""
-        mujoco = self.mj
-        out: dict[str, Hole] = {}
+    def _set_holes(self, measured: dict[str, HoleGeometry]) -> None:
+        """The holes as measured on the file's geometry, moved with their carriers."""
+        self.holes: dict[str, Hole] = {}
         self.hole_geometry: dict[str, HoleGeometry] = {}
-        groups = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)
-        geomid = np.zeros(1, dtype=np.int32)
-        for feat in self.cell.features.values():
-            if feat.kind != "hole":
-                continue
-            T = feat.world_T_feature.copy()
-            T[:3, 3] += self._hole_shift.get(feat.name, 0.0)
-            axis = T[:3, 2]
-            start = T[:3, 3] + 1e-4 * axis
-            depth = mujoco.mj_ray(model, data, start, -axis, groups, 1, -1, geomid)
-            depth = float(depth - 1e-4) if depth >= 0 else self.settings.hole_depth
-            middle = T[:3, 3] - 0.5 * depth * axis
-            width = np.zeros(2)
-            for k in range(2):
-                d = T[:3, k]
-                a = mujoco.mj_ray(model, data, middle, d, groups, 1, -1, geomid)
-                b = mujoco.mj_ray(model, data, middle, -d, groups, 1, -1, geomid)
-                width[k] = (a + b) if a >= 0 and b >= 0 else np.inf
-            out[feat.name] = Hole(feat.name, T, depth=depth)
-            self.hole_geometry[feat.name] = HoleGeometry(feat.name, T, width, depth)
-        return out
+        for name, geo in measured.items():
+            T = geo.world_T_hole.copy()
+            T[:3, 3] += self._hole_shift.get(name, 0.0)
+            self.holes[name] = Hole(name, T, depth=geo.depth)
+            self.hole_geometry[name] = HoleGeometry(name, T, geo.width.copy(), geo.depth)
+        self._hole_T_world = {name: invert(h.world_T_hole) for name, h in self.holes.items()}
 
     def _fit_objects(self) -> bool:
         """Check each object that starts in a hole fits it; narrow it to the asked clearance."""
@@ -474,14 +512,25 @@ class PhysicsWorld:
         f_site = np.array(d.sensordata[0:3])
         t_site = np.array(d.sensordata[3:6])
         # the sensor reads what the arm exerts on the gripper; the world exerts the opposite
-        weight = np.array([0.0, 0.0, -GRAVITY * self._tool_mass])
+        w = GRAVITY * self._tool_mass  # the tool's weight, (0, 0, -w)
         lever = d.subtree_com[self._gripper_body] - d.site_xpos[self._wrist_site]
-        force = -(R @ f_site) - weight
-        torque = -(R @ t_site) - np.cross(lever, weight)
-        sigma = self.settings.force_noise
-        noise = self._rng.normal(0.0, sigma, 6) if sigma > 0 else np.zeros(6)
+        force = -(R @ f_site)
+        force[2] += w
+        torque = -(R @ t_site)
+        torque[0] -= lever[1] * w  # lever x (0, 0, -w), taken off
+        torque[1] += lever[0] * w
         self.wrench_clean = np.concatenate([force, torque])
-        self.wrench = self.wrench_clean + noise
+        self.wrench = self.wrench_clean + self._noise_at(self.time)
+
+    def _noise_at(self, t: float) -> np.ndarray:
+        """The sensor's noise at time ``t``: a function of the seed and the servo period's index
+        only, so letting time pass at rest without reading draws the same noise afterwards."""
+        sigma = self.settings.force_noise
+        if sigma <= 0:
+            return np.zeros(6)
+        if self._noise_table is None:  # one seeded table, read by period index (repeats after 5.5 min)
+            self._noise_table = np.random.default_rng((self.settings.seed & 0xFFFFFFFF, 7)).normal(0.0, sigma, (NOISE_TABLE, 6))
+        return self._noise_table[int(round(t / self.servo_period)) % NOISE_TABLE]
 
     def contact(self, q: np.ndarray | None = None, noise: bool = True) -> Contact:
         """What the force sensor feels now beyond the held object's weight (N, world frame).
@@ -554,7 +603,7 @@ class PhysicsWorld:
         peg = self.pegs[name]
         foot = peg.world_T_peg[:3, 3] - peg.world_T_peg[:3, 2] * peg.half_size[2]
         for hole in self.holes.values():
-            local = invert(hole.world_T_hole) @ np.array([*foot, 1.0])
+            local = self._hole_T_world[hole.name] @ np.array([*foot, 1.0])
             geo = self.hole_geometry[hole.name]
             if local[2] < 0.0 and np.all(np.abs(local[:2]) <= geo.width / 2.0 + 1e-3):
                 return hole.name
