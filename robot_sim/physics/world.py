@@ -53,6 +53,18 @@ HOLD_TOLERANCE = 0.002
 """How much narrower than the held object the fingers may close before it counts as lost (m)."""
 
 
+def _mujoco_warning(text: str) -> None:
+    log.warning("MuJoCo: %s", text.strip())
+
+
+def _route_warnings() -> None:
+    """MuJoCo's warnings to the log (it would write MUJOCO_LOG.TXT into the working folder)."""
+    import mujoco
+
+    if mujoco.get_mju_user_warning() is not _mujoco_warning:
+        mujoco.set_mju_user_warning(_mujoco_warning)
+
+
 class PhysicsUnstable(TeleprogError):
     """The simulation diverged (NaN or a blow-up): the robot stops and reports it."""
 
@@ -128,6 +140,7 @@ class PhysicsWorld:
                  q0: np.ndarray | None = None, servo_period: float = 0.01) -> None:
         import mujoco
 
+        _route_warnings()
         self._mj = mujoco
         self.cell = cell
         self.robot = robot

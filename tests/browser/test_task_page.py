@@ -1,5 +1,7 @@
 """A task deviation on the page (issue 18): ``teleprog up`` with a telerobot whose peg sticks in
-its hole (the seeded fault, ``TELEPROG_ROBOT_WORLD__STICK_PROBABILITY=1``). The operator types
+its hole on contact physics (world seed 1: the plate 2 mm off across the fingers, so closing them
+presses the peg on its wall through the compliant wrist; dry friction 0.6 then holds it past the
+extraction's 40 N: nothing scripts the outcome). The operator types
 the approach and grasp and sends them, then the extraction; the robot's grasp shows on the Task
 tab, the extraction fails, and the tab shows a task deviation in red naming the transition that
 was expected, ``part(PEG,HOLE1)``. The page is driven with mouse and keyboard only; the session
@@ -23,7 +25,8 @@ APPROACH = ["SPEED 50 %", "MOVES TO (0, -80, 160) mm (180, 0, 0) deg IN WORK",
 @pytest.fixture(scope="module")
 def sticky_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningConsole]:
     mp = pytest.MonkeyPatch()
-    mp.setenv("TELEPROG_ROBOT_WORLD__STICK_PROBABILITY", "1")
+    for name, value in {"SEED": "1", "OBJECT_OFFSET": "0.002", "FRICTION": "0.6"}.items():
+        mp.setenv(f"TELEPROG_ROBOT_WORLD__{name}", value)
     try:
         running = start_console(tmp_path_factory.mktemp("task_page"), "--delay-ms", "200", "--no-record")
     finally:
@@ -68,4 +71,7 @@ def test_a_stuck_peg_shows_a_task_deviation_on_the_task_tab(ui: ConsolePage) -> 
     assert "Task deviation" in text and "extract_peg" in text and "part(PEG,HOLE1)" in text
     assert ui.task_actions("robot") == ["grasp(PEG)"]  # the part never happened on the robot
     task = ui.console.api("GET", "/api/task").json()  # the API agrees with the page
-    assert [d["expected"] for d in task["deviations"]] == ["part(PEG,HOLE1)"]
+    # the missing transition; on physics the peg came up a little before it stuck, and a robot
+    # state between "in the hole" and "out" may be flagged too, expecting the same transition
+    assert [d["expected"] for d in task["deviations"] if d["kind"] == "missing"] == ["part(PEG,HOLE1)"]
+    assert {d["expected"] for d in task["deviations"]} == {"part(PEG,HOLE1)"}
