@@ -775,7 +775,10 @@ class Executor:
 
     # -- reports --------------------------------------------------------------------------------
     def snapshot(self) -> RobotSnapshot:
-        base_T_tcp = self.robot.fk(self.q) @ self.cell.flange_T_tcp
+        if self.physical:  # the tool as it is: the compliant wrist's deflection included
+            base_T_tcp = np.linalg.inv(self.cell.world_T_base) @ self.world.world_T_tcp()
+        else:
+            base_T_tcp = self.robot.fk(self.q) @ self.cell.flange_T_tcp
         return RobotSnapshot(
             state=self.state,
             mode=ControlMode.FORCE if self.mode is Mode.FORCE else ControlMode.POSITION,

@@ -294,7 +294,7 @@ def build_mjcf(cell: Cell, params: PhysicsParams, object_poses: dict[str, np.nda
         # a parallel gripper: one motor, the fingers geared to close together (centred on the tool axis)
         actuators.append(f'<position name="grip0" joint="finger0" kp="20000" kv="40" '
                          f'ctrlrange="0 {finger_travel:.6g}" forcerange="{-p.grip_force:.6g} {p.grip_force:.6g}"/>')
-        equality.append('<joint joint1="finger1" joint2="finger0" polycoef="0 1 0 0 0" solref="0.004 1"/>')
+        equality.append('<joint joint1="finger1" joint2="finger0" polycoef="0 1 0 0 0" solref="0.002 1" solimp="0.99 0.999 0.0001"/>')
 
     sensors = ['<force name="wrist_force" site="wrist"/>', '<torque name="wrist_torque" site="wrist"/>']
     xml = "\n".join([

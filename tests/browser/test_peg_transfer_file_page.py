@@ -1,9 +1,9 @@
 """The "Done when" of issue 16: the whole peg transfer of thesis §4.6 from the page, with the
 shipped ``assets/programs/peg_transfer.tp`` loaded in one piece through the Program tab's upload
 button, previewed to its end on the Preview tab in the quasi-operation (offline) regime, and
-submitted with the Submit tab's button, over a real telerobot and link (``teleprog up --delay-ms
-200``). It ends with every line of the file done on the robot, exactly those lines sent, and the
-peg reported standing in HOLE2 with the gripper empty.
+submitted with the Submit tab's button, over a real telerobot on contact physics and the thesis's
+3 s link (``teleprog up --delay-ms 3000``). It ends with every line of the file done on the robot,
+exactly those lines sent, and the physical peg reported standing in HOLE2 with the gripper empty.
 
 The Task tab (issue 18) follows it: the preview's steps show the task actions the range makes one
 after another, and while the robot runs the file its reports add grasp, part, mate and release
@@ -35,7 +35,7 @@ PROGRAM = ASSETS_DIR / "programs" / "peg_transfer.tp"
 
 @pytest.fixture(scope="module")
 def file_console(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningConsole]:
-    running = start_console(tmp_path_factory.mktemp("peg_file_page"), "--delay-ms", "200")
+    running = start_console(tmp_path_factory.mktemp("peg_file_page"), "--delay-ms", "3000")  # the thesis's link
     yield running
     stop_process(running.proc)
 
@@ -136,3 +136,5 @@ def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) ->
     peg_now = np.asarray(remote["object_poses"]["peg"])
     hole2 = load_cell(DEFAULT_CELL).features["HOLE2"].world_T_feature
     np.testing.assert_allclose(peg_now[:2, 3], hole2[:2, 3], atol=0.003)  # the peg stands in HOLE2
+    foot_z = peg_now[2, 3] - 0.040  # the 80 mm peg's foot, as the physics left it
+    assert foot_z < hole2[2, 3] - 0.029, f"the peg's foot is {1e3 * (hole2[2, 3] - foot_z):.1f} mm into the 30 mm hole"

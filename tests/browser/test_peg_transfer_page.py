@@ -82,7 +82,8 @@ def test_peg_transfer_from_the_page(ui: ConsolePage) -> None:
     ui.text_appears(r"Starts from: re-synced from robot")
     remote = ui.console.api("GET", "/api/remote").json()
     arm = ui.session()["arm"]
-    np.testing.assert_allclose(arm["q"], remote["q"], atol=1e-9)  # the virtual arm stands where the robot does
+    # the virtual arm stands where the robot does (the physical arm settles by a few 1e-5 rad after)
+    np.testing.assert_allclose(arm["q"], remote["q"], atol=2e-4)
 
     send_piece(ui, PIECES[3], sent)  # position mode, let go
     remote = wait_for(lambda: (r := ui.console.api("GET", "/api/remote").json())["state"] == "idle" and r,
