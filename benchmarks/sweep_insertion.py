@@ -95,8 +95,8 @@ def plot(result: dict, out: Path) -> None:
         pts = result[key]
         x = [p[key] for p in pts]
         y = [100 * (p["success"] or 0.0) for p in pts]
-        lo = [y_ - 100 * p["wilson95"][0] for y_, p in zip(y, pts, strict=True)]
-        hi = [100 * p["wilson95"][1] - y_ for y_, p in zip(y, pts, strict=True)]
+        lo = [max(0.0, y_ - 100 * p["wilson95"][0]) for y_, p in zip(y, pts, strict=True)]
+        hi = [max(0.0, 100 * p["wilson95"][1] - y_) for y_, p in zip(y, pts, strict=True)]
         ax.errorbar(x, y, yerr=[lo, hi], fmt="o-", capsize=4, color="tab:blue", label="success (Wilson 95 %)")
         bottom = [0.0] * len(pts)
         colours = {"jammed": "tab:red", "no hole found": "tab:orange", "peg lost": "tab:purple",
@@ -128,7 +128,12 @@ def main() -> int:
     p.add_argument("--tilts", default="0,0.25,0.5,1,1.5,2", help="grasp tilts to sweep, deg (at 2 mm offset)")
     p.add_argument("--out", default="benchmarks/figures/insertion_sweep.png")
     p.add_argument("--json", default="benchmarks/figures/insertion_sweep.json")
+    p.add_argument("--replot", action="store_true", help="draw the plot from --json without running")
     args = p.parse_args()
+    if args.replot:
+        plot(json.loads(Path(args.json).read_text()), Path(args.out))
+        print(f"wrote {args.out}")
+        return 0
     t0 = time.monotonic()
     result: dict = {"runs": args.runs, "seed": args.seed, "engine": "mujoco", "delay_ms": 3000.0}
     with ProcessPoolExecutor(args.workers) as pool:

@@ -130,6 +130,7 @@ class Executor:
         self._comply = np.zeros(6)  # compliance's offset of the tool point (m, rad; world axes)
         self._complying = False  # force mode or a force-compliant task: the tool gives way
         self._in_task = False
+        self._holding_clear = False
         self.state = RobotState.IDLE
         self.mode = Mode.POSITION
         zones = None
@@ -175,6 +176,9 @@ class Executor:
 
     def _hold(self) -> None:
         """The joint servo holds the arm where it is now (physics: the measured pose)."""
+        if self.physical and self._holding_clear:
+            self._holding_clear = False  # already holding the last pose the collision core passed
+            return
         if self.physical:
             self.world.hold()
             self._setpoint = None
@@ -318,7 +322,7 @@ class Executor:
     def _run(self, statement: Statement) -> _Runner:
         if isinstance(statement, TaskCall):
             return (yield from self._task(statement))
-        self.interpreter.resume_at(self.q)
+        self.interpreter.resume_at(self._plan_start())
         segment = self.interpreter.plan_next(statement)
         if isinstance(statement, SetMode):
             self.mode = statement.mode
@@ -419,9 +423,11 @@ class Executor:
             report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
             if report.colliding:
                 pair = report.pairs[0]
+                self._hold_clear()
                 raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
         if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
             shape = self._terrain.exact_check(q).shape
+            self._hold_clear()
             raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
         limit = self.settings.max_force if guarded else self.settings.contact_limit
         monitor = limit if pressing is None else None
@@ -481,6 +487,21 @@ class Executor:
         v_flange = v_tcp + np.cross(omega, base_T_flange[:3, 3] - base_p_tcp)
         J = self.robot.jacobian(q)
         return q + np.linalg.lstsq(J, np.concatenate([v_flange, omega]), rcond=None)[0]
+
+    def _plan_start(self) -> np.ndarray:
+        """Where a new motion is planned from: the arm (kinematic), or the joint servo's setpoint
+        on physics, where the arm a hair behind it is heading (after a contact fault the servo
+        holds the last clear pose while the arm settles back onto it)."""
+        return self._held_setpoint().copy() if self.physical else self.q
+
+    def _hold_clear(self) -> None:
+        """The collision core refused the next sample: the servo holds the last commanded pose,
+        which it passed (the physical arm, a little behind it, settles there), so a later motion
+        away starts out of contact, as on the kinematic world."""
+        self._setpoint = self._held_setpoint()
+        self.world.hold_at(self._setpoint)
+        self.q = self.world.q
+        self._holding_clear = True  # the failure that follows keeps this hold (no brake past it)
 
     def _held_setpoint(self) -> np.ndarray:
         """The joint target the servo holds now (physics): the last commanded one, or where the
@@ -588,7 +609,7 @@ class Executor:
     def _tool_line(self, world_p_target: np.ndarray, until: UntilForce | UntilContact | None = None,
                    speed: float | None = None) -> Segment:
         """Plan a straight tool move to a world point at task speed (or ``speed`` m/s), orientation kept."""
-        self.interpreter.resume_at(self.q)
+        self.interpreter.resume_at(self._plan_start())
         statement = Draw(
             position=tuple(float(v) for v in world_p_target),
             frame=Frame.WORLD,

@@ -418,6 +418,13 @@ class PhysicsWorld:
         self._brake_until = self.time + BRAKE_TIME
         self._asleep = False
 
+    def hold_at(self, q: np.ndarray) -> None:
+        """Hold the joint setpoint ``q`` (at rest), with the servo's own gains."""
+        if self._brake_until is not None:
+            self._end_brake()
+        self._set_target(np.asarray(q, dtype=float), np.zeros(self.robot.dof))
+        self._asleep = False
+
     def set_gripper(self, closed: bool) -> None:
         self.gripper_closed = closed
         for g in self._grip:
