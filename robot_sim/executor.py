@@ -589,6 +589,8 @@ class Executor:
             return detail
         if spec.name == "release":
             if self.physical:
+                if not self.world.gripper_closed and self.world.held_peg() is None:
+                    return "gripper opened, holding nothing"  # already open: nothing to wait for
                 self.world.open_gripper()
                 yield from self._wait(self.settings.gripper_time)
                 return self.world.release_result()

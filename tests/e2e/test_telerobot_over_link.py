@@ -46,7 +46,8 @@ def test_peg_transfer_through_a_real_3_s_link(robot, tmp_path) -> None:
     # the answer and the last report each crossed 3 s, plus the program's own motion
     assert elapsed > 6.0 + 15.0
     # telemetry arrives through the same link and shows the arm where the last report put it
-    np.testing.assert_allclose(frame.q, finals[len(PEG_TRANSFER)].robot.q, atol=1e-9)
+    # (on physics the arm at rest still settles by some 1e-8 rad between the report and the frame)
+    np.testing.assert_allclose(frame.q, finals[len(PEG_TRANSFER)].robot.q, atol=1e-5)
     assert robot.health()["numbered"] == len(PEG_TRANSFER)
 
 

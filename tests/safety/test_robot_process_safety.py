@@ -328,7 +328,7 @@ def test_a_frozen_link_halts_the_robot_within_the_limit_and_resume_continues(rob
             assert health["halted"].startswith("no message from the console for")
             q = telemetry_q(robot)
             time.sleep(0.5)
-            np.testing.assert_array_equal(telemetry_q(robot), q)  # holding
+            np.testing.assert_allclose(telemetry_q(robot), q, atol=2e-4)  # holding (a braked physical arm settles by ~1e-5 rad)
         finally:
             os.kill(link.proc.pid, signal.SIGCONT)
         assert took < SILENCE_BOUND_S + 0.1, f"the robot stopped {took:.2f} s after the link froze"
