@@ -748,7 +748,7 @@ class Executor:
             self.mode = mode
         return False
 
-    def _press(self, z_target: float, start_z: float | None = None) -> Generator[None, None, None]:
+    def _press(self, z_target: float) -> Generator[None, None, None]:
         """Push the tool straight down towards ``z_target`` at ``guarded_speed`` until the wrist
         reads ``press_force`` (compliance on: a chamfer under the peg turns the push sideways)."""
         here = self._world_tcp()[:3, 3]

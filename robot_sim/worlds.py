@@ -22,10 +22,3 @@ def make_world(cell: Cell, settings: WorldSettings | None = None, servo_period: 
     from robot_sim.physics.world import PhysicsWorld
 
     return PhysicsWorld(cell, cell.robot, settings, servo_period=servo_period)
-
-
-def describe_world(world: "PhysicsWorld | SimWorld") -> dict[str, object]:
-    """The engine and its parameters, for a trial's summary and the robot's banner."""
-    if hasattr(world, "describe"):
-        return world.describe()
-    return {"engine": "kinematic"}

@@ -157,6 +157,7 @@ class PhysicsWorld:
         self._build()
         self.gripper_closed = False
         self._held: str | None = None
+        self._grasp_name: str | None = None
         self._tilt_pending = 0.0
         self._payload = 0.0
         self.time = 0.0
@@ -266,7 +267,6 @@ class PhysicsWorld:
         self._tool_mass = float(model.body_subtreemass[self._gripper_body])
         self._bodies = {name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in layout.objects}
         self._object_qadr = {name: model.jnt_qposadr[model.body_jntadr[b]] for name, b in self._bodies.items()}
-        self._object_vadr = {name: model.jnt_dofadr[model.body_jntadr[b]] for name, b in self._bodies.items()}
         self._geom_body = np.asarray(model.geom_bodyid)
         self._static_geom = np.asarray(model.geom_group) == 0
         self._arm_geom = np.asarray(model.geom_contype) == 2
@@ -735,17 +735,6 @@ class PhysicsWorld:
             out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
                                   base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
         return tuple(out)
-
-    def describe(self) -> dict[str, object]:
-        """The engine and every parameter it runs with (a trial's summary)."""
-        return {
-            "engine": self.engine,
-            "mujoco_version": self.mj.__version__,
-            **self.params.as_dict(),
-            "servo_substeps": self.substeps,
-            "clearance_mm": {n: round(c * 1e3, 4) for n in self.pegs if (c := self.clearance(n)) is not None},
-            "inertias": self.layout.inertia_source,
-        }
 
 
 def _contains(obj, point: np.ndarray, tol: float = 1e-6) -> bool:
