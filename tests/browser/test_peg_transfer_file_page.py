@@ -100,7 +100,7 @@ def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) ->
     upload_program(ui, PROGRAM)
     wait_for(lambda: len(ui.session()["program"]["entries"]) == len(expected) + 1,
              what=f"the file loaded (page notice: {ui.notice()!r})")
-    ui.text_appears(rf"{len(expected)}: MODE POSITION")  # the program list shows the file's last line
+    ui.text_appears(rf"{len(expected)}: MODE POSITION", timeout=30)  # the program list shows the file's last line
     assert [e["text"] for e in ui.session()["program"]["entries"][:-1]] == expected
 
     ui.tab("Task")  # viser mounts a tab's content when it is first opened; it stays mounted after
