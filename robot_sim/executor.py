@@ -388,15 +388,8 @@ class Executor:
                 raise StepFailure(f"unplanned contact: {felt.magnitude:.1f} N at {felt.what}")
         # the collision core and the terrain are checked before the step is commanded: the arm
         # holds at the last clear sample, so a later motion away starts out of contact
-        if self._scene is not None:
-            poses = {name: peg.world_T_peg for name, peg in self._poses_after(q).items()}
-            report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
-            if report.colliding:
-                pair = report.pairs[0]
-                raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
-        if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
-            shape = self._terrain.exact_check(q).shape
-            raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
+        if (touch := self._model_contact(q)) is not None:
+            raise StepFailure(touch)
         self.q = q
         self.world.follow(q)
         return pressing
@@ -418,17 +411,9 @@ class Executor:
         qd = np.asarray(qd, dtype=float)
         if self._complying and guarded:
             q = self._comply_q(q)
-        if self._scene is not None:
-            poses = {name: peg.world_T_peg for name, peg in self._poses_after(q).items()}
-            report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
-            if report.colliding:
-                pair = report.pairs[0]
-                self._hold_clear()
-                raise StepFailure(f"unplanned contact: {pair.a} touches {pair.b}")
-        if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
-            shape = self._terrain.exact_check(q).shape
+        if (touch := self._model_contact(q)) is not None:
             self._hold_clear()
-            raise StepFailure(f"unplanned contact: {shape or 'the arm'} touches the terrain")
+            raise StepFailure(touch)
         limit = self.settings.max_force if guarded else self.settings.contact_limit
         monitor = limit if pressing is None else None
         if stop_force is not None and monitor is not None:
@@ -534,6 +519,20 @@ class Executor:
             self.world.servo(self._held_setpoint())
             self._commanded = True
             yield
+
+    def _model_contact(self, q: np.ndarray) -> str | None:
+        """Why the commanded pose ``q`` would put the arm into the cell (the collision core on the
+        real objects' poses, the terrain's own tree), or None when it is clear."""
+        if self._scene is not None:
+            poses = {name: peg.world_T_peg for name, peg in self._poses_after(q).items()}
+            report = self._scene.check(q, object_poses=poses, distances="none", triangles=False, skip=self._skip)
+            if report.colliding:
+                pair = report.pairs[0]
+                return f"unplanned contact: {pair.a} touches {pair.b}"
+        if self._terrain is not None and self._terrain.min_distance(q) <= 0.0:
+            shape = self._terrain.exact_check(q).shape
+            return f"unplanned contact: {shape or 'the arm'} touches the terrain"
+        return None
 
     def _poses_after(self, q: np.ndarray) -> dict[str, PegState]:
         """Where the pegs would be with the arm at ``q`` (a held peg moves with the tool)."""

@@ -32,6 +32,17 @@ from robot_sim.settings import WorldSettings
 log = logging.getLogger(__name__)
 
 
+def perceived_poses(pegs: dict[str, PegState], world_T_base: np.ndarray) -> tuple[ObjectPose, ...]:
+    """Each object's true pose in the robot's base frame, as the robot reports it (either world)."""
+    base_T_world = invert(world_T_base)
+    out = []
+    for name, peg in pegs.items():
+        base_T_peg = base_T_world @ peg.world_T_peg
+        out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
+                              base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class Contact:
     """What the force sensor feels now: force on the tool in the world frame (N)."""
@@ -205,13 +216,7 @@ class SimWorld:
         simulation reports the true poses (a real cell would see them through a camera, with
         its error): they differ from the console's model wherever the world does (holes off
         their modelled place, a peg seated by search)."""
-        base_T_world = invert(self.cell.world_T_base)
-        out = []
-        for name, peg in self.pegs.items():
-            base_T_peg = base_T_world @ peg.world_T_peg
-            out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
-                                  base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
-        return tuple(out)
+        return perceived_poses(self.pegs, self.cell.world_T_base)
 
     # -- contact -------------------------------------------------------------------------------
     def _hole_under(self, peg: PegState, capture: float) -> Hole | None:

@@ -29,11 +29,11 @@ import numpy as np
 from robot_sim.physics.mjcf import ModelLayout, build_mjcf
 from shared.cells.physics import PhysicsParams
 from robot_sim.settings import WorldSettings
-from robot_sim.world import Contact, Hole, PegState
+from robot_sim.world import Contact, Hole, PegState, perceived_poses
 from shared.cells.cell import Cell
 from shared.errors import FileFormatError, TeleprogError
 from shared.robots.model import Robot
-from shared.spatial import invert, matrix_to_rpy
+from shared.spatial import invert
 from shared.wire.messages import ObjectPose
 
 log = logging.getLogger(__name__)
@@ -728,13 +728,7 @@ class PhysicsWorld:
         return None
 
     def perceived_objects(self) -> tuple[ObjectPose, ...]:
-        base_T_world = invert(self.cell.world_T_base)
-        out = []
-        for name, peg in self.pegs.items():
-            base_T_peg = base_T_world @ peg.world_T_peg
-            out.append(ObjectPose(name=name, base_p=tuple(float(v) for v in base_T_peg[:3, 3]),
-                                  base_rpy=tuple(float(v) for v in matrix_to_rpy(base_T_peg[:3, :3]))))
-        return tuple(out)
+        return perceived_poses(self.pegs, self.cell.world_T_base)
 
 
 def _contains(obj, point: np.ndarray, tol: float = 1e-6) -> bool:
