@@ -25,6 +25,7 @@ from server.api.recordings import RecordingNow, RecordingsSource
 from server.trials.service import TrialBatches
 from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
+from server.http_errors import ERROR_RESPONSES
 from server.console import Session
 from server.http_errors import add_error_handler
 from server.recording.recorder import SessionRecorder, record_session
@@ -84,7 +85,7 @@ def create_app(
         if attached is not None:
             session.attach_robot(attached.wait_client(), attached.loop)
             attached.when_connected(session.dispatch.note_round_trip)  # the round trip alone
-        tasks.append(asyncio.create_task(session.run(), name="session-clock"))
+        session.start_clock()  # its own thread: a tick takes the session's lock, this loop must not wait
         viser_server = start_viser()
         trials = TrialBatches(settings.cell)
         try:
@@ -141,6 +142,10 @@ def create_app(
         return HealthOut(status="ok", cell=c.session.cell.name, robot=c.session.robot.name)
 
     include_routers(app)
+    if settings.fault_injection:
+        from server.api import faults
+
+        app.include_router(faults.router, responses=ERROR_RESPONSES)
     add_viser_routes(
         app,
         lambda: holder["state"].viser_port if "state" in holder else _no_scene(),

@@ -50,6 +50,9 @@ class ConsoleSettings(BaseSettings):
     record_flush_s: float = Field(
         1.0, gt=0.0, le=60.0, description="a chunk is closed at least this often: a killed console loses at most this much (s)"
     )
+    fault_injection: bool = Field(
+        False, description="serve /api/faults (the console misbehaving on purpose, for tests and surprise campaigns; never on by default)"
+    )
     # the sedimentation view (``teleprog up --sedimentation``, thesis chapter 5)
     sedimentation: bool = Field(False, description="serve the particle-sedimentation view instead of the robot console")
     sedimentation_method: str = Field("usscd", description="broadphase method the sedimentation view starts with")

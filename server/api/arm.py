@@ -4,6 +4,7 @@ backing the remote arm out of a contact fault in one call."""
 from __future__ import annotations
 
 import numpy as np
+from starlette.concurrency import run_in_threadpool
 from fastapi import APIRouter
 
 from server.api.deps import ClientDep, SessionDep
@@ -52,11 +53,15 @@ def jog_tool_state(session: Session, body: JogToolIn, client: Caller) -> StateOu
 # document them and give every other answer (a malformed body, a header too long).
 @router.post("/jog/joint", response_model=StateOut)
 async def jog_joint(body: JogJointIn, session: SessionDep, client: ClientDep) -> StateOut:
+    if session.busy():  # a long computation holds the session: wait on a worker, not on the loop
+        return await run_in_threadpool(jog_joint_state, session, body, client)
     return jog_joint_state(session, body, client)
 
 
 @router.post("/jog/tool", response_model=StateOut)
 async def jog_tool(body: JogToolIn, session: SessionDep, client: ClientDep) -> StateOut:
+    if session.busy():
+        return await run_in_threadpool(jog_tool_state, session, body, client)
     return jog_tool_state(session, body, client)
 
 

@@ -64,7 +64,8 @@ async def events(websocket: WebSocket) -> None:
     unsubscribe = session.subscribe_events(push)
     receiver: asyncio.Task | None = None
     try:
-        await websocket.send_text(snapshot_text())
+        # the snapshot takes the session's lock: on a worker thread, so a busy session never holds the loop
+        await websocket.send_text(await asyncio.to_thread(snapshot_text))
         # one long-lived reader; the writer only awaits the queue (no task and no wait set per
         # message: at jogging rates that was a good part of the stream's cost)
         receiver = asyncio.create_task(watch_receive())
@@ -77,7 +78,7 @@ async def events(websocket: WebSocket) -> None:
                     if queue.get_nowait() is None:
                         return
                 overflow = False
-                text = snapshot_text()
+                text = await asyncio.to_thread(snapshot_text)
             await websocket.send_text(text)
     except WebSocketDisconnect:
         pass

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
+from starlette.concurrency import run_in_threadpool
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from server.api.arm import jog_joint_state, jog_tool_state
@@ -88,8 +89,12 @@ class JogLane:
             parsed = model.model_validate(loads_strict(body))
         except (StrictJSONError, ValidationError):
             return False
+        caller = Caller(name=name or None, token=token or None)
         try:
-            out = handler(state.session, parsed, Caller(name=name or None, token=token or None))
+            if state.session.busy():  # a long computation holds the session: wait on a worker, not on this loop
+                out = await run_in_threadpool(handler, state.session, parsed, caller)
+            else:
+                out = handler(state.session, parsed, caller)
         except TeleprogError as exc:
             await teleprog_refusal(exc)(scope, receive, send)
             return True

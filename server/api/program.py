@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from starlette.concurrency import run_in_threadpool
 from fastapi import APIRouter, Request
 from fastapi.responses import PlainTextResponse
 from pydantic import Field
@@ -151,7 +152,8 @@ async def upload(request: Request, session: SessionDep, client: ClientDep, filen
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(f"{filename}: not UTF-8 text (byte {exc.start})") from None
-    return session.program.load(text, filename, client=client)
+    # parsing a long file takes seconds: on a worker thread, as the other endpoints run, never on the loop
+    return await run_in_threadpool(session.program.load, text, filename, client=client)
 
 
 @router.get("/save", response_class=PlainTextResponse)

@@ -5,6 +5,11 @@ Threading: the parts' methods may be called from any thread (viser's handlers, u
 threads, the asyncio loop's callbacks). State changes happen under ``lock``, never held across an
 ``await`` or while listeners run; events are published after the lock is released.
 
+The robot client's loop (``robot-io``) carries heartbeats and STOP: nothing on it may wait for
+``lock`` or run a listener. A coroutine the console schedules there only awaits the robot; what
+follows the robot's answer (bookkeeping under the lock, events) is posted to ``after``, a thread of
+the console's own that runs those calls in order.
+
 Clocks: ``clock`` is monotonic seconds (ages, rates, the generator's samples, the preview's
 playing); ``wall_clock`` is Unix seconds (the ``*_at`` fields people read). Both are injected, so
 tests run the console in virtual time.
@@ -20,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from server.console.bus import EventBus
+from server.delivery import Delivery
 from shared.cells.cell import Cell
 from shared.program.generator import GeneratorSettings
 from shared.robots.jog import JogFrames
@@ -68,6 +74,8 @@ class ConsoleContext:
     clock: Clock = time.monotonic
     wall_clock: Clock = time.time
     lock: threading.RLock = field(default_factory=threading.RLock)
+    after: Delivery = field(default_factory=lambda: Delivery(name="console-after"))
+    """What follows a robot's answer, off the robot client's loop (module docstring)."""
 
     def __post_init__(self) -> None:
         self.robot = self.cell.robot

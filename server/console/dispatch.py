@@ -413,28 +413,38 @@ class Dispatch:
         return plan
 
     async def send(self, robot: RobotLink, comm: int, statements: list[Statement]) -> None:
-        """One communication over the link; its answer numbers the statements."""
+        """One communication over the link; its answer numbers the statements. Runs on the robot
+        client's loop and only awaits the robot: what the answer changes is done on the console's
+        ``after`` thread (the loop never waits for the session's lock)."""
         t0 = self._ctx.clock()
         # a round trip counts only if the link stayed up throughout (else it includes the outage)
         was_up, reconnects = robot.connected.is_set(), robot.reconnects
         try:
             numbers = await robot.submit(statements)
-        except RobotRestarted as exc:  # on_robot_restart marked the numbered ones already
-            self.mark_unknown([s for s in self.sent if s.comm == comm], str(exc))
+        except Exception as exc:  # noqa: BLE001 - every failure is told; none ends the loop
+            self._ctx.after.post(self._send_failed, comm, exc)
             return
-        except TeleprogError as exc:  # CommunicationRejected
+        round_trip = None
+        if was_up and robot.connected.is_set() and robot.reconnects == reconnects:
+            round_trip = self._ctx.clock() - t0
+        self._ctx.after.post(self._answered, comm, numbers, round_trip, self._ctx.wall_clock())
+
+    def _send_failed(self, comm: int, exc: Exception) -> None:
+        if isinstance(exc, RobotRestarted):  # on_robot_restart marked the numbered ones already
+            self.mark_unknown([s for s in self.sent if s.comm == comm], str(exc))
+        elif isinstance(exc, TeleprogError):  # CommunicationRejected
             self.finish_communication(comm, SentStatus.REJECTED, str(exc))
             self._ctx.bus.emit([Notice(level="error", message=str(exc))])
-            return
-        except Exception as exc:  # noqa: BLE001 - never let a send die silently
-            log.exception("submission %d failed", comm)
+        else:
+            log.error("submission %d failed: %s", comm, exc, exc_info=exc)
             self._ctx.bus.emit([Notice(level="error", message=f"submission failed: {exc}")])
-            return
-        if was_up and robot.connected.is_set() and robot.reconnects == reconnects:
-            self.note_round_trip(self._ctx.clock() - t0)
+
+    def _answered(self, comm: int, numbers: tuple[int, ...], round_trip: float | None, now: float) -> None:
+        """The robot numbered communication ``comm`` (on the ``after`` thread)."""
+        if round_trip is not None:
+            self.note_round_trip(round_trip)
         with self._ctx.lock:
             items = [s for s in self.sent if s.comm == comm]
-            now = self._ctx.wall_clock()
             for s, number in zip(items, numbers):
                 s.number, s.answered_at = number, now
                 if s.status is SentStatus.SENDING:

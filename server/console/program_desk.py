@@ -247,9 +247,10 @@ class ProgramDesk:
         return self._edit(lambda e: e.redo(), client)
 
     def load(self, text: str, filename: str = "program.tp", *, client: Caller | str | None = None) -> ProgramView:
-        """Replace the program by a program file's content (text form, or JSON when the name ends
-        in .json). A broken file raises ``InputError`` naming file, line and column; the current
-        program is then kept."""
+        """Replace the program by a file's content (text, or JSON for a .json name); control is
+        checked before the costly parse; a broken file is an ``InputError`` at file:line:col."""
+        with self._ctx.lock:
+            self._control.check(client)
         name = PurePath(filename).name or "program"
         parsed = parse_json(text, name) if name.lower().endswith(".json") else parse_program(text, name)
         if not parsed.ok:

@@ -8,6 +8,7 @@ the acknowledgement, never waits for it in a page handler, and says what the rob
 from __future__ import annotations
 
 import asyncio
+import itertools
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING
 
@@ -39,7 +40,7 @@ class Recovery:
         self._ctx = ctx
         self._control, self._desk, self._dispatch, self._remote, self._link = control, desk, dispatch, remote, link
         self.pending: dict[int, str] = {}
-        self._count = 0
+        self._keys = itertools.count(1)  # next() is atomic: STOP takes a key without the lock
 
     def stop(self, *, client: Caller | str | None = None) -> LinkView:
         """STOP: the robot halts and waits. Anybody may press STOP, whoever holds control."""
@@ -105,12 +106,10 @@ class Recovery:
             try:
                 await robot.abort()
             except Exception as exc:  # noqa: BLE001 - shown, and the motion is not sent
-                self._close(key)
-                dispatch.finish_communication(comm, SentStatus.REJECTED, f"abort failed: {exc}")
-                self._ctx.bus.emit([Notice(level="error", message=f"back away not sent: abort failed: {exc}")])
+                self._ctx.after.post(self._back_away_refused, key, comm, exc)
                 return
-            self._close(key)
-            self._ctx.bus.emit([LinkChanged(link=self._link.view())])
+            # the abort is applied: the motion goes out now, from this loop; the lists follow
+            self._ctx.after.post(self._close_and_show, key)
             await dispatch.send(robot, comm, outgoing)
 
         asyncio.run_coroutine_threadsafe(run(), loop)
@@ -121,42 +120,70 @@ class Recovery:
         return view
 
     def _open(self, what: str) -> int:
-        self._count += 1
-        self.pending[self._count] = what
-        return self._count
+        key = next(self._keys)
+        self.pending[key] = what
+        return key
 
     def _close(self, key: int) -> None:
         with self._ctx.lock:
             self.pending.pop(key, None)
 
+    def _close_and_show(self, key: int) -> None:
+        self._close(key)
+        self._ctx.bus.emit([LinkChanged(link=self._link.view())])
+
+    def _back_away_refused(self, key: int, comm: int, exc: Exception) -> None:
+        self._close(key)
+        self._dispatch.finish_communication(comm, SentStatus.REJECTED, f"abort failed: {exc}")
+        self._ctx.bus.emit([Notice(level="error", message=f"back away not sent: abort failed: {exc}")])
+
     def _recover(self, what: str, call: Callable[[object], Awaitable[RecoveryAck]], client: Caller | str | None) -> LinkView:
-        with self._ctx.lock:
-            if what != "stop":
-                self._control.check(client)
+        if what == "stop":
+            # STOP goes out before anything else: no control check (anybody may stop) and no
+            # wait for the session's lock, which a long computation may hold; the robot client's
+            # loop sends it at once. The pending entry and the events follow.
             robot, loop = self._dispatch.need_robot()
-            key = self._open(what)
-
-        async def run() -> None:
-            t0 = self._ctx.clock()
-            try:
-                ack = await call(robot)
-            except Exception as exc:  # noqa: BLE001
-                self._ctx.bus.emit([Notice(level="error", message=f"{what} failed: {exc}")])
-                ack = None
-            else:
-                self._dispatch.note_round_trip(self._ctx.clock() - t0)
+            key = next(self._keys)
+            self._schedule(what, key, call, robot, loop)
             with self._ctx.lock:
-                self.pending.pop(key, None)
-                if ack is not None:
-                    self._remote.take_reported_objects(ack.robot)
-            if ack is not None:
-                level = "info" if ack.applied else "warning"
-                detail = f": {ack.detail}" if ack.detail else ""
-                self._ctx.bus.emit([Notice(level=level, message=f"robot {'applied' if ack.applied else 'did not apply'} {what}{detail}")])
-            self._ctx.bus.emit([LinkChanged(link=self._link.view())])
-
-        asyncio.run_coroutine_threadsafe(run(), loop)
+                self.pending.setdefault(key, what)
+        else:
+            with self._ctx.lock:
+                self._control.check(client)
+                robot, loop = self._dispatch.need_robot()
+                key = self._open(what)
+            self._schedule(what, key, call, robot, loop)
         view = self._link.view()
         action, _, detail = what.partition(" ")
         self._ctx.bus.emit([ActionTaken(action=action, client=as_caller(client).name, detail=detail), LinkChanged(link=view)])
         return view
+
+    def _schedule(self, what: str, key: int, call: Callable[[object], Awaitable[RecoveryAck]], robot, loop) -> None:
+        """Send the command on the robot client's loop; what its acknowledgement changes runs on
+        the console's ``after`` thread (the loop never waits for the session's lock)."""
+        async def run() -> None:
+            t0 = self._ctx.clock()
+            try:
+                ack = await call(robot)
+            except Exception as exc:  # noqa: BLE001 - told, never lost
+                self._ctx.after.post(self._acknowledged, what, key, None, None, exc)
+                return
+            self._ctx.after.post(self._acknowledged, what, key, ack, self._ctx.clock() - t0, None)
+
+        asyncio.run_coroutine_threadsafe(run(), loop)
+
+    def _acknowledged(self, what: str, key: int, ack: RecoveryAck | None, round_trip: float | None,
+                      error: Exception | None) -> None:
+        if error is not None:
+            self._ctx.bus.emit([Notice(level="error", message=f"{what} failed: {error}")])
+        if round_trip is not None:
+            self._dispatch.note_round_trip(round_trip)
+        with self._ctx.lock:
+            self.pending.pop(key, None)
+            if ack is not None:
+                self._remote.take_reported_objects(ack.robot)
+        if ack is not None:
+            level = "info" if ack.applied else "warning"
+            detail = f": {ack.detail}" if ack.detail else ""
+            self._ctx.bus.emit([Notice(level=level, message=f"robot {'applied' if ack.applied else 'did not apply'} {what}{detail}")])
+        self._ctx.bus.emit([LinkChanged(link=self._link.view())])

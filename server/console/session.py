@@ -26,6 +26,8 @@ or ``None`` for the page this console serves.
 from __future__ import annotations
 
 import asyncio
+import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -53,6 +55,8 @@ from shared.collision import SceneModel
 from shared.collision.cell_check import CellCollision
 from shared.terrain.ground import GroundChecker
 
+
+log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class CellOffers:
@@ -108,7 +112,7 @@ class Session:
         self.readiness = Readiness(ctx, self.modes, self.program, self.dispatch, self.preview)
         self.task = TaskMonitor(ctx, preview_source=self._preview_source)
         self.bus.subscribe(self.task.on_event)
-        self._closing = False
+        self._closed = threading.Event()
 
     def _preview_source(self, stop: int):
         """What the task panel plays for a preview ending at ``stop``: the statements, the
@@ -151,12 +155,47 @@ class Session:
         self.preview.tick()
         self.link.tick()
 
-    async def run(self) -> None:
-        """Tick at the preview's player rate for the console's lifetime (the app's loop)."""
+    def start_clock(self) -> threading.Thread:
+        """Tick at the preview's player rate for the console's lifetime, on a thread of its own:
+        a tick takes the session's lock, and the web server's loop must never wait for it."""
         period = 1.0 / self.settings.player_rate_hz
-        while not self._closing:
-            self.tick()
-            await asyncio.sleep(period)
+
+        def run() -> None:
+            while not self._closed.wait(period):
+                try:
+                    self.tick()
+                except Exception:  # noqa: BLE001 - the clock must go on
+                    log.exception("the session's clock tick failed")
+
+        thread = threading.Thread(target=run, name="session-clock", daemon=True)
+        thread.start()
+        return thread
+
+    def busy(self) -> bool:
+        """Whether another thread holds the session's lock now (a long computation): the web
+        server's loop then hands a quick call (a jog) to a worker thread instead of waiting."""
+        lock = self._ctx.lock
+        if lock.acquire(blocking=False):
+            lock.release()
+            return False
+        return True
 
     def close(self) -> None:
-        self._closing = True
+        self._closed.set()
+
+    def stall(self, seconds: float) -> bool:
+        """Fault injection (``server.api.faults``): a thread holds the session's lock and computes
+        for ``seconds``, as a slow plan would. True once it holds the lock (within 5 s)."""
+        holding = threading.Event()
+
+        def compute() -> None:
+            with self._ctx.lock:
+                holding.set()
+                end = time.monotonic() + seconds
+                n = 0
+                while time.monotonic() < end:  # pure Python: it holds the interpreter as a plan does
+                    n += sum(i * i for i in range(200))
+            log.warning("fault injection: the session's work stalled for %.1f s", seconds)
+
+        threading.Thread(target=compute, name="fault-stall", daemon=True).start()
+        return holding.wait(5.0)

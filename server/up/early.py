@@ -42,6 +42,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
         no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
         sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
         record=False if get("no_record") else None, record_dir=get("record"),
+        fault_injection=True if get("fault_injection") else None,
     )
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import threading
 import time
 from pathlib import Path
 
@@ -178,3 +179,57 @@ def test_a_frozen_console_halts_the_robot_within_the_limit_and_resume_continues(
         if frozen:
             os.kill(console.proc.pid, signal.SIGCONT)
         stop_process(console.proc)
+
+
+def test_a_stalled_session_neither_silences_the_link_nor_delays_a_stop(tmp_path) -> None:
+    """The session's work stalls for 5 s (``/api/faults/stall``: a computation holding the
+    session's lock, as a slow plan does) while the robot runs a drive: the heartbeats go on, so
+    the robot never halts for silence, and a STOP pressed during the stall reaches the robot
+    within the link's round trip (plus polling on a loaded machine), long before the stall ends."""
+    delay_s, stall_s = 0.3, 5.0
+    console = start_console(tmp_path, "--delay-ms", str(delay_s * 1e3), "--fault-injection")
+    try:
+        robot_port, _ = _ports(console)
+        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
+        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
+        _api(console, "PUT", "/api/regime", {"regime": "free"})
+        q = _api(console, "GET", "/api/arm")["q_deg"]
+        for text in ("SPEED 3 %", f"DRIVE J1 TO {q[0] + 40:.2f} deg"):
+            _api(console, "POST", "/api/program/insert", {"text": text})
+        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
+        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        assert _api(console, "POST", "/api/faults/stall", {"seconds": stall_s})["started"]
+        stalled_at = time.monotonic()
+        # past the robot's silence limit with the session stalled: it still hears the console
+        while time.monotonic() < stalled_at + SILENCE_LIMIT_S + 1.0:
+            h = health()
+            assert h["state"] == "running" and h["halted"] is None, f"the robot halted during the stall: {h}"
+            time.sleep(0.05)
+        # STOP during the stall: its HTTP answer waits for the session, the command must not
+        answer: dict = {}
+        stopping = threading.Thread(target=lambda: answer.update(r=console.api("POST", "/api/robot/stop", headers=CLIENT)))
+        pressed_at = time.monotonic()
+        stopping.start()
+        wait_for(lambda: health()["state"] == "stopped", 2 * delay_s + 0.2 + MARGIN_S, 0.02, "the robot stopped by the STOP")
+        stopped_at = time.monotonic()
+        assert stopped_at - pressed_at < 2 * delay_s + 0.2 + MARGIN_S
+        assert stopped_at < stalled_at + stall_s, "the STOP waited for the stalled session"
+        assert health()["halted"] is None or "no message from the console" not in health()["halted"]
+        stopping.join(stall_s + 30)
+        assert answer["r"].status_code == 200, answer["r"].text
+        # after the stall: the console shows the stop acknowledged, the drive held, not failed by silence
+        wait_for(lambda: not _link(console)["recovery_pending"], 15, 0.1, "the STOP acknowledged")
+        sent = _api(console, "GET", "/api/sent")["items"]
+        assert sent[-1]["status"] in ("running", "received"), sent[-1]
+    finally:
+        stop_process(console.proc)
+
+
+def test_fault_injection_is_off_unless_asked(tmp_path) -> None:
+    from fastapi.testclient import TestClient
+
+    from server.app import create_app
+    from server.settings import ConsoleSettings
+
+    with TestClient(create_app(ConsoleSettings(no_robot=True, record=False), build_page=False)) as client:
+        assert client.post("/api/faults/stall", json={"seconds": 1}).status_code == 404

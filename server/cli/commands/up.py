@@ -33,6 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--no-restart", action="store_true", help="leave a telerobot or link child that exits stopped (default: start it again)"
     )
     rec = up.add_mutually_exclusive_group()
+    up.add_argument("--fault-injection", action="store_true",
+                    help="serve /api/faults: the console misbehaves on request (tests, surprise campaigns)")
     rec.add_argument("--record", metavar="DIR", default=None, help="folder for the session's MCAP recording (default recordings/)")
     rec.add_argument("--no-record", action="store_true", help="record nothing")
     group = up.add_mutually_exclusive_group()
