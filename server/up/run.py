@@ -16,9 +16,12 @@ from __future__ import annotations
 import argparse
 import logging
 import signal
+import socket
 import sys
 
 import uvicorn
+
+from shared.errors import InputError
 
 from server.app import create_app
 from server.settings import ConsoleSettings
@@ -43,6 +46,21 @@ class AnnouncingServer(uvicorn.Server):
                 return
 
 
+def bind_first(config: uvicorn.Config) -> socket.socket:
+    """The console's socket, bound now: before the app's start-up opens viser's private port on
+    an OS-assigned one, which could otherwise be the very port the console was told to use (a
+    port found free and not yet bound). A port already taken is a one-line error."""
+    host = config.host or "127.0.0.1"
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, config.port))
+    except OSError as exc:
+        sock.close()
+        raise InputError(f"cannot listen on {host}:{config.port}: {exc.strerror or exc}") from None
+    return sock
+
+
 def exit_quietly(signum: int, frame: object) -> None:
     raise SystemExit(0)
 
@@ -58,7 +76,7 @@ def run_sedimentation(settings: ConsoleSettings) -> int:
         app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
     )
     server = AnnouncingServer(config)
-    server.run()
+    server.run(sockets=[bind_first(config)])
     return 0 if server.started else 1
 
 
@@ -99,7 +117,7 @@ def run_console(args: argparse.Namespace, early: EarlyStart | None = None) -> in
             app, host=settings.host, port=settings.port, log_level="warning", workers=1, **uvicorn_config_kwargs()
         )
         server = AnnouncingServer(config)
-        server.run()
+        server.run(sockets=[bind_first(config)])
         return 0 if server.started else 1
     finally:
         from server.up.stack import stop_child
