@@ -15,7 +15,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
     from server.replay.app import create_replay_app
     from server.settings import ConsoleSettings
-    from server.up.run import AnnouncingServer, exit_quietly
+    from server.up.run import AnnouncingServer, bind_first, exit_quietly
     from server.viser_host import uvicorn_config_kwargs
 
     settings = ConsoleSettings().with_overrides(port=args.port, host=args.host)
@@ -27,7 +27,7 @@ def _cmd_replay(args: argparse.Namespace) -> int:
                             **uvicorn_config_kwargs())
     server = AnnouncingServer(config)
     server.label = "teleprog replay"
-    server.run()
+    server.run(sockets=[bind_first(config)])
     return 0 if server.started else 1
 
 
