@@ -42,6 +42,7 @@ from server.console.enums import Regime
 from server.console.errors import ConflictError, ConsoleLineAdded, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
+from server.console.program_entries import EntryViews
 from server.console.views import (
     Caller,
     ProgramView,
@@ -119,6 +120,7 @@ class ProgramDesk:
         self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
         self._durations: tuple[tuple, list[float | None]] | None = None  # (key, durations)
         self._planner: tuple[bytes, PrefixPlanner] | None = None  # (start joints, its planner)
+        self._entries = EntryViews()
 
     # -- reading -----------------------------------------------------------------------------
     @property
@@ -130,9 +132,7 @@ class ProgramDesk:
         with self._ctx.lock:
             st = self._editor.state
             durations = self.durations()
-            entries = [StatementView(index=i, kind=s.kind, text=format_statement(s), statement=s, duration_s=d,
-                                     **self._added_fields(s))
-                       for (i, s), d in zip(enumerate(st.statements), durations, strict=True)]
+            entries = self._entries.views(st.statements, durations, self._added_fields)
             entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
             e = self._editor
             return ProgramView(

@@ -10,8 +10,8 @@ Cartesian path keeps its shape whatever the timing. The law accelerates at ``acc
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -33,8 +33,9 @@ class Trapezoid:
         """Largest ``ds/dt`` reached (equals ``velocity`` unless the profile is triangular)."""
         return self.accel * self.t_accel
 
-    @property
+    @cached_property
     def duration(self) -> float:
+        """Length of the whole law (s); computed once (a long program's views read it per line)."""
         ta = self.t_accel
         peak = self.accel * ta
         cruise = max(0.0, (1.0 - peak * ta) / peak)
