@@ -34,6 +34,7 @@ from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT
 from server.console.events import ArmChanged, PreviewChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
 from server.console.views import ActionView, DeviationView, PreviewView, RemoteArmView, RuleView, TaskView
+from server.delivery import Delivery
 from shared.cells.object_world import ObjectWorld
 from shared.motion.frames import CellFrames
 from shared.language.parser import parse_program
@@ -97,6 +98,11 @@ class TaskMonitor:
         self._lock = threading.Lock()
         self._play_lock = threading.Lock()  # a previewed range's play, outside ``_lock``
         self._played: _PreviewPlay | None = None  # the newest play (``_preview`` while previewing)
+        # the plays (seconds for a long range) run here, never on the thread that previewed or submitted
+        self._plays = Delivery(name="task-plays")
+        self._queued = 0
+        self._settled = threading.Condition()
+        self._preview_seq = 0  # bumped by every PreviewChanged: a play that finds it moved shows nothing
         cell = ctx.cell
         path = task_file or task_file_for_cell(cell.name)
         self.space: TaskSpace | None = None
@@ -130,24 +136,23 @@ class TaskMonitor:
     def on_event(self, event: SessionEvent) -> None:
         if self.space is None:
             return
-        changed = False
-        source = None
-        if isinstance(event, PreviewChanged) and event.preview.active and self._preview_source is not None:
-            source = self._preview_source(event.preview.stop)  # read outside this part's lock
         if isinstance(event, RangeSubmitted):
-            # the play of a range takes a while: never under the lock every telemetry frame takes
             with self._lock:
                 self._robot.playing.update(event.ids)
-            expected = self._expected_actions(event)
-            with self._lock:
-                self._robot.playing.difference_update(event.ids)
-                for sent_id, exp in expected.items():
-                    self._robot.expectations[sent_id] = exp
-                    final = self._robot.early_finals.pop(sent_id, None)
-                    if final is not None:  # it ended while the range was being played
-                        exp.final_seen, (exp.status, exp.number) = True, final
+            self._later(self._take_submitted, event)
             return
-        play = self._preview_play(event.preview, source) if isinstance(event, PreviewChanged) else None
+        if isinstance(event, PreviewChanged):
+            with self._lock:
+                self._preview_seq += 1
+                seq = self._preview_seq
+            source = None
+            if event.preview.active and self._preview_source is not None:
+                source = self._preview_source(event.preview.stop)  # read outside this part's lock
+                if not self._kept(event.preview, source):  # a new range: played off this thread
+                    self._later(self._take_preview, event, source, seq)
+                    return
+            self._take_preview(event, source, seq)
+            return
         with self._lock:
             if isinstance(event, ArmChanged):
                 changed = self._observe_virtual(event)
@@ -155,13 +160,63 @@ class TaskMonitor:
                 changed = self._observe_robot(event)
             elif isinstance(event, SentChanged):
                 changed = self._statuses(event)
-            elif isinstance(event, PreviewChanged):
-                changed = self._follow_preview(event.preview, source, play)
-            if changed:
-                self._version += 1
-                view = self._view()
-        if changed:
+            else:
+                changed = False
+            view = self._changed() if changed else None
+        if view is not None:
             self._ctx.bus.emit([TaskChanged(task=view)])
+
+    def settled(self, timeout: float = 60.0) -> bool:
+        """Wait until no play is queued or running (tests; a caller that must read its result)."""
+        with self._settled:
+            return self._settled.wait_for(lambda: self._queued == 0, timeout)
+
+    def _later(self, fn: Callable, *args: object) -> None:
+        def run() -> None:
+            try:
+                fn(*args)
+            finally:
+                with self._settled:
+                    self._queued -= 1
+                    self._settled.notify_all()
+
+        with self._settled:
+            self._queued += 1
+        self._plays.post(run)
+
+    def _changed(self) -> TaskView:
+        self._version += 1
+        return self._view()
+
+    def _take_submitted(self, event: RangeSubmitted) -> None:
+        """Play a submitted range (on the plays' thread): what each statement should do."""
+        expected = self._expected_actions(event)
+        with self._lock:
+            self._robot.playing.difference_update(event.ids)
+            for sent_id, exp in expected.items():
+                self._robot.expectations[sent_id] = exp
+                final = self._robot.early_finals.pop(sent_id, None)
+                if final is not None:  # it ended while the range was being played
+                    exp.final_seen, (exp.status, exp.number) = True, final
+
+    def _take_preview(self, event: PreviewChanged, source, seq: int) -> None:
+        play = self._preview_play(event.preview, source)
+        with self._lock:
+            if seq != self._preview_seq:  # a newer preview event came meanwhile: it shows
+                return
+            view = self._changed() if self._follow_preview(event.preview, source, play) else None
+        if view is not None:
+            self._ctx.bus.emit([TaskChanged(task=view)])
+
+    def _kept(self, pv: PreviewView, source) -> bool:
+        kept = self._played
+        return kept is not None and kept.key == self._preview_key(pv, source)
+
+    @staticmethod
+    def _preview_key(pv: PreviewView, source) -> tuple:
+        statements, start_q, poses, held = source
+        return (pv.start, pv.stop, tuple(statements), np.asarray(start_q).tobytes(),
+                tuple(sorted((k, np.asarray(v).tobytes()) for k, v in poses.items())), held)
 
     def _state(self, world_T_tcp, closed: bool, poses: dict) -> CellState:
         cell = self._ctx.cell
@@ -201,8 +256,7 @@ class TaskMonitor:
         if not pv.active or source is None:
             return None
         statements, start_q, poses, held = source
-        key = (pv.start, pv.stop, tuple(statements), np.asarray(start_q).tobytes(),
-               tuple(sorted((k, np.asarray(v).tobytes()) for k, v in poses.items())), held)
+        key = self._preview_key(pv, source)
         with self._play_lock:  # one play at a time: the player's events must not each start one
             kept = self._played
             if kept is not None and kept.key == key:

@@ -25,6 +25,7 @@ def test_the_preview_shows_each_action_as_the_player_passes_it(session: Session)
     session.program.load(PROGRAM, "peg_transfer.tp")
     n = session.program.view().empty_index
     view = session.preview.begin(0, n)
+    assert session.task.settled()  # the range is played off the caller's thread
     task = session.task.view()
     assert task.preview_active and actions(session) == []
     assert "PEGINHOLE(PEG,HOLE1)" in task.preview_marking and "HANDEEMPTY" in task.preview_marking
@@ -58,6 +59,7 @@ def test_a_preview_of_a_later_range_lists_only_that_range(session: Session) -> N
     first_draw = next(i for i, s in enumerate(statements) if "DRAW TO (0, -80, 160)" in s.text)
     view = session.preview.begin(first_draw, session.program.view().empty_index)
     session.preview.seek(view.duration)
+    assert session.task.settled()
     # grasp and part happened before the range: the marking has them, the list does not
     assert actions(session) == ["mate(PEG,HOLE2)", "release(PEG)"]
     assert all(a.statement > first_draw for a in session.task.view().preview_actions)
@@ -72,3 +74,27 @@ def test_the_space_net_is_the_grounded_task_space_marked_as_loaded(session: Sess
     grasp = next(t for t in net.transitions if t.action == "grasp(PEG)")
     assert {predicates[p] for p in grasp.pre} == {"HANDEEMPTY", "PEGFREE(PEG)"}
     assert {predicates[p] for p in grasp.post} == {"HOLDING(PEG)"}
+
+
+def test_a_preview_and_a_submit_never_wait_for_the_task_panels_play(session: Session, monkeypatch) -> None:
+    """The play of a range (seconds at 1,000 statements) runs on the task panel's own thread: the
+    preview answers while it is still playing, the panel follows once it is done."""
+    import threading
+
+    gate = threading.Event()
+    real = session.task._play
+
+    def slow_play(*args):
+        assert gate.wait(30), "the test never let the play finish"
+        return real(*args)
+
+    monkeypatch.setattr(session.task, "_play", slow_play)
+    session.program.load(PROGRAM, "peg_transfer.tp")
+    n = session.program.view().empty_index
+    view = session.preview.begin(0, n)  # answers although the play is held
+    assert view.active and not session.task.settled(0.2)
+    assert not session.task.view().preview_active  # nothing shown before the play is done
+    gate.set()
+    assert session.task.settled()
+    session.preview.seek(view.duration)
+    assert actions(session) == ALL
