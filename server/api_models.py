@@ -8,6 +8,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.console import VirtualState
+from server.loop_watch import LoopLag
 from shared.spatial import matrix_to_rpy
 
 MAX_COUNT = 1_000_000
@@ -35,6 +36,7 @@ class HealthOut(BaseModel):
     status: Literal["ok"]
     cell: str
     robot: str
+    loop: LoopLag | None = Field(None, description="the web server's event-loop lag (with ?loop=true; ?loop=reset starts a new window)")
 
 
 class StateOut(BaseModel):

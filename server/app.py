@@ -15,6 +15,7 @@ from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import RedirectResponse
@@ -25,9 +26,9 @@ from server.api.recordings import RecordingNow, RecordingsSource
 from server.trials.service import TrialBatches
 from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
-from server.http_errors import ERROR_RESPONSES
+from server.loop_watch import LoopWatch
 from server.console import Session
-from server.http_errors import add_error_handler
+from server.http_errors import ERROR_RESPONSES, add_error_handler
 from server.recording.recorder import SessionRecorder, record_session
 from server.settings import ConsoleSettings
 from server.up.early import EarlyRobot
@@ -70,6 +71,7 @@ def create_app(
     settings = settings or ConsoleSettings()
     cell = load_cell(settings.cell)  # fail before serving anything if the cell is broken
     holder: dict[str, ConsoleState] = {}
+    loop_watch = LoopWatch()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -85,6 +87,7 @@ def create_app(
         if attached is not None:
             session.attach_robot(attached.wait_client(), attached.loop)
             attached.when_connected(session.dispatch.note_round_trip)  # the round trip alone
+        tasks.append(asyncio.create_task(loop_watch.run(), name="loop-watch"))
         session.start_clock()  # its own thread: a tick takes the session's lock, this loop must not wait
         viser_server = start_viser()
         trials = TrialBatches(settings.cell)
@@ -136,10 +139,17 @@ def create_app(
     def index() -> RedirectResponse:
         return RedirectResponse(settings.viser_prefix + "/")
 
-    @app.get("/api/health", response_model=HealthOut, tags=["session"])
-    def health(request: Request) -> HealthOut:
+    @app.get("/api/health", response_model=HealthOut, response_model_exclude_none=True, tags=["session"])
+    async def health(request: Request, loop: Literal["true", "reset"] | None = None) -> HealthOut:
+        """The console is up; with ``loop``, how late its event loop wakes (``reset``: the window
+        starts again after this answer). Answered on the loop itself: a stalled loop answers late."""
         c: ConsoleState = request.app.state.console
-        return HealthOut(status="ok", cell=c.session.cell.name, robot=c.session.robot.name)
+        lag = None
+        if loop is not None:
+            lag = loop_watch.view()
+            if loop == "reset":
+                loop_watch.reset()
+        return HealthOut(status="ok", cell=c.session.cell.name, robot=c.session.robot.name, loop=lag)
 
     include_routers(app)
     if settings.fault_injection:

@@ -110,6 +110,7 @@ class Console:
         self._remote: RemoteArmView | None = None
         self._preview = PreviewView()
         self._collision: CollisionView | None = None
+        self._program = None  # the newest ProgramView, shown when a page connects
         self._link_text = ""
         self._terrain_view = None
 
@@ -130,12 +131,9 @@ class Console:
                 self.drive.show_collision(event.collision)
             self._draw_collision()
         elif isinstance(event, ProgramChanged):
-            self.drive.show_program(event.program)
-            self.program.show(event.program)
-            self.preview.show_program(event.program)
-            self.monitor.show_program(event.program)
-            if self.banner is not None:
-                self.banner.show_auto_generate(event.program.auto_generate)
+            self._program = event.program
+            if self._watched():  # a long program's list is costly to build: only for a page to see
+                self._show_program(event.program)
         elif isinstance(event, PreviewChanged):
             self._preview = event.preview
             self.preview.show(event.preview)
@@ -198,6 +196,14 @@ class Console:
             self.status.show_notice_event(event)
 
     # -- drawing by display mode --------------------------------------------------------------
+    def _show_program(self, program) -> None:
+        self.drive.show_program(program)
+        self.program.show(program)
+        self.preview.show_program(program)
+        self.monitor.show_program(program)
+        if self.banner is not None:
+            self.banner.show_auto_generate(program.auto_generate)
+
     def _watched(self) -> bool:
         """Is a page connected? If not, remember the scene needs drawing when one is."""
         if self._connecting or self.server.get_clients():
@@ -217,6 +223,8 @@ class Console:
                     self.drive.show_arm(self._arm)
                 if self._collision is not None:
                     self.drive.show_collision(self._collision)
+                if self._program is not None:
+                    self._show_program(self._program)
                 self._draw_arm()
                 self._draw_ghost()
                 self._draw_collision()

@@ -67,7 +67,7 @@ from server.console.events import (
     SentChanged,
 )
 from server.console.robot_seam import RobotLink
-from server.console.statement_checks import checked_statement, statement_text
+from server.console.statement_checks import checked_statement, statement_refusal, statement_text
 from server.console.views import Caller, SentListView, SentView
 from server.robot_client import RobotRestarted
 from shared.errors import InputError, TeleprogError
@@ -353,10 +353,8 @@ class Dispatch:
                     return check.message
                 statements = list(editor.state.statements[start:stop])
                 for i, st in enumerate(statements):
-                    try:
-                        checked_statement(st)
-                    except TeleprogError as exc:
-                        return f"statement {start + i + 1}: {exc}"
+                    if (refused := statement_refusal(st)) is not None:
+                        return f"statement {start + i + 1}: {refused}"
                 if regime:
                     self._regime_rules(statements, start, stop)
                     need = self._mode_need(statements, start)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import ValidationError
 
-from shared.errors import InputError
+from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_statement
 from shared.language.statements import Statement
 
@@ -22,6 +22,27 @@ def checked_statement(statement: Statement) -> Statement:
         raise InputError(f"{statement.kind}: {where + ': ' if where else ''}{first.get('msg', 'invalid')}") from None
     format_statement(checked)  # raises InputError for what cannot be written (a NaN, say)
     return checked
+
+
+_REFUSALS: dict[int, tuple[Statement, str | None]] = {}
+"""id(statement) -> (the statement, kept alive; what ``checked_statement`` says of it, or None)."""
+
+
+def statement_refusal(statement: Statement) -> str | None:
+    """What ``checked_statement`` refuses ``statement`` with, or None; once per statement object
+    (statements are frozen), so readiness, asked after every change, checks only new lines."""
+    kept = _REFUSALS.get(id(statement))
+    if kept is not None and kept[0] is statement:
+        return kept[1]
+    try:
+        checked_statement(statement)
+        refusal = None
+    except TeleprogError as exc:
+        refusal = str(exc)
+    if len(_REFUSALS) > 100_000:  # statements long gone keep ids alive: start again
+        _REFUSALS.clear()
+    _REFUSALS[id(statement)] = (statement, refusal)
+    return refusal
 
 
 def statement_text(statement: Statement) -> str:

@@ -186,7 +186,8 @@ def test_stop_during_a_long_move(ui: ConsolePage) -> None:
     q_stopped = ui.session()["remote"]["q"]
     assert q_stopped != q_running  # it had moved before the STOP arrived
     time.sleep(1.0)
-    assert ui.session()["remote"]["q"] == q_stopped  # and stays still after it
+    # and stays still after it (a braked physical arm settles by some 1e-5 rad, no more)
+    assert ui.session()["remote"]["q"] == pytest.approx(q_stopped, abs=2e-4)
     assert ui.session()["sent"]["items"][-1]["status"] not in ("done",)
     ui.page.get_by_role("button", name="Abort", exact=True).click()
     wait_for(lambda: ui.session()["sent"]["pending"] == 0, timeout=20, what="aborted statement final")
