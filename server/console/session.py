@@ -181,7 +181,10 @@ class Session:
         return True
 
     def close(self) -> None:
+        """The clock stops; the threads that follow the robot's answers and play ranges end."""
         self._closed.set()
+        self._ctx.after.close()
+        self.task.close()
 
     def stall(self, seconds: float) -> bool:
         """Fault injection (``server.api.faults``): a thread holds the session's lock and computes

@@ -166,6 +166,9 @@ class TaskMonitor:
         if view is not None:
             self._ctx.bus.emit([TaskChanged(task=view)])
 
+    def close(self) -> None:
+        self._plays.close()
+
     def settled(self, timeout: float = 60.0) -> bool:
         """Wait until no play is queued or running (tests; a caller that must read its result)."""
         with self._settled:
