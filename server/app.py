@@ -139,7 +139,8 @@ def create_app(
     def index() -> RedirectResponse:
         return RedirectResponse(settings.viser_prefix + "/")
 
-    @app.get("/api/health", response_model=HealthOut, response_model_exclude_none=True, tags=["session"])
+    @app.get("/api/health", response_model=HealthOut, response_model_exclude_none=True, tags=["session"],
+             responses=ERROR_RESPONSES)
     async def health(request: Request, loop: Literal["true", "reset"] | None = None) -> HealthOut:
         """The console is up; with ``loop``, how late its event loop wakes (``reset``: the window
         starts again after this answer). Answered on the loop itself: a stalled loop answers late."""

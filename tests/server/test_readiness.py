@@ -130,7 +130,8 @@ def test_what_submit_needs_is_said_before_the_click_and_agrees_with_submit(sessi
     session.preview.end()
     need = session.readiness.view()
     assert need.ready and need.blocker is None and need.line.startswith("Ready to send 1-2")
-    assert refusal_of_submit(session, 0, 2) is None and len(robot.submitted) == 1  # and it went
+    assert refusal_of_submit(session, 0, 2) is None  # and it went (on the robot client's loop)
+    wait_until(lambda: len(robot.submitted) == 1, "the submission on the robot's loop")
 
     session.modes.set_regime_override(Regime.OPERATION)
     program(session, "DRIVE J1 TO 20 deg")
