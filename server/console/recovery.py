@@ -144,9 +144,10 @@ class Recovery:
             # loop sends it at once. The pending entry and the events follow.
             robot, loop = self._dispatch.need_robot()
             key = next(self._keys)
+            # listed before it is sent, so its acknowledgement always finds it; one dict store is
+            # atomic, and the link view copies the dict in one step too
+            self.pending[key] = what
             self._schedule(what, key, call, robot, loop)
-            with self._ctx.lock:
-                self.pending.setdefault(key, what)
         else:
             with self._ctx.lock:
                 self._control.check(client)
