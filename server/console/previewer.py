@@ -42,7 +42,7 @@ from server.console.events import Notice, PreviewChanged, ProgramChanged, Sessio
 from server.console.views import Caller, PreviewAndSubmitView, PreviewView, PreviewWarning, SentListView
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_statement
-from shared.motion.plan_check import PlanCheck, check_plan, plan_or_refuse
+from shared.motion.plan_check import PlanCheck, check_plan
 from shared.program.editor import Refusal
 
 if TYPE_CHECKING:
@@ -127,9 +127,9 @@ class Previewer:
     def check(self, start: int, stop: int) -> tuple[PlanCheck, list[PreviewWarning]]:
         """Plan the program's first ``stop`` statements from its start and check ``start..stop-1``
         (under the lock)."""
-        statements = list(self._desk.editor.state.statements[:stop])
         ctx = self._ctx
-        plan = plan_or_refuse(statements, ctx.robot, ctx.cell, self._desk.start.q)
+        # the program's own planner: what its durations planned is not planned again
+        plan = self._desk.prefix_planner(self._desk.start.q).plan_first(self._desk.editor.state.statements, stop)
         poses, _held = self._arm()
         checked = check_plan(plan, ctx.robot, self._collision, start, stop, object_poses=poses or None,
                              dt=ctx.settings.preview_dt, max_samples=ctx.settings.preview_max_samples)

@@ -156,7 +156,7 @@ class ProgramDesk:
             durations: list[float | None] = [None] * len(statements)
             if statements and not start.unknown:
                 try:
-                    plan = self._prefix_planner(start.q).plan(statements)
+                    plan = self.prefix_planner(start.q).plan(statements)
                 except TeleprogError as exc:
                     self._planner = None
                     log.info("no durations: the program cannot be planned (%s)", exc)
@@ -166,7 +166,7 @@ class ProgramDesk:
             self._durations = (key, durations)
             return durations
 
-    def _prefix_planner(self, q_start: np.ndarray) -> PrefixPlanner:
+    def prefix_planner(self, q_start: np.ndarray) -> PrefixPlanner:
         """The planner of durations from ``q_start``: it re-plans a changed program only from its
         first changed statement (a generated statement added while driving: one statement)."""
         key = q_start.tobytes()

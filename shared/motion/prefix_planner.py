@@ -70,3 +70,17 @@ class PrefixPlanner:
             self._states.append(self._interp.state)
             self._statements.append(statement)
         return Plan.of(self._segments, self._states[0].q.copy(), self._states[-1], refusal)
+
+    def plan_first(self, statements: Sequence[Statement], stop: int) -> Plan:
+        """The plan of ``statements[:stop]`` (as ``plan_program`` gives it), taken from the plan
+        of all of ``statements``, which stays kept: a preview of a range and the program's
+        durations share one planning, and neither re-plans what the other planned."""
+        try:
+            refusal = self.plan(statements).refusal
+        except TeleprogError:  # a numerical failure past ``stop`` is not this prefix's business
+            if len(self._segments) < stop:
+                raise
+            refusal = None
+        n = min(stop, len(self._segments))
+        refusal = refusal if stop > n else None  # planning stopped before ``stop``
+        return Plan.of(self._segments[:n], self._states[0].q.copy(), self._states[n], refusal)

@@ -99,3 +99,18 @@ def test_a_start_outside_the_joint_ranges_is_refused_as_plan_program_refuses_it(
     with pytest.raises(JointLimitError) as ours:
         PrefixPlanner(cell.robot, cell, np.full(6, 10.0))
     assert str(ours.value) == str(theirs.value)
+
+
+def test_the_plan_of_a_prefix_is_plan_program_of_that_prefix(cell) -> None:
+    """``plan_first(statements, stop)`` (a preview's range planned by the program's planner) is
+    ``plan_program(statements[:stop])`` for every stop, before, at and after a refusal."""
+    program = [POOL[0], POOL[2], POOL[3], POOL[6], POOL[5], POOL[7], POOL[8]]  # POOL[5] is refused
+    planner = PrefixPlanner(cell.robot, cell, cell.q_home)
+    for stop in range(len(program) + 1):
+        ours = planner.plan_first(program, stop)
+        assert_same_plan(ours, plan_program(program[:stop], cell.robot, cell, start_q=cell.q_home))
+        assert (ours.refusal is not None) == (stop > 4)
+    # and the whole program stays kept: planning it again re-plans nothing
+    before = planner._segments[:]
+    planner.plan(program)
+    assert all(a is b for a, b in zip(before, planner._segments))
