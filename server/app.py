@@ -86,7 +86,8 @@ def create_app(
         attached = robot or own_robot
         if attached is not None:
             session.attach_robot(attached.wait_client(), attached.loop)
-            attached.when_connected(session.dispatch.note_round_trip)  # the round trip alone
+            # the round trip alone; the callback runs on the robot-io thread: the lock is taken elsewhere
+            attached.when_connected(lambda seconds: session.later(session.dispatch.note_round_trip, seconds))
         tasks.append(asyncio.create_task(loop_watch.run(), name="loop-watch"))
         session.start_clock()  # its own thread: a tick takes the session's lock, this loop must not wait
         viser_server = start_viser()

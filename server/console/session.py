@@ -171,6 +171,11 @@ class Session:
         thread.start()
         return thread
 
+    def later(self, fn: Callable[..., None], *args: object) -> None:
+        """``fn(*args)`` on the console's ``after`` thread: for a caller on the robot client's
+        loop, which must not wait for the session's lock."""
+        self._ctx.after.post(fn, *args)
+
     def busy(self) -> bool:
         """Whether another thread holds the session's lock now (a long computation): the web
         server's loop then hands a quick call (a jog) to a worker thread instead of waiting."""
