@@ -110,7 +110,8 @@ class Console:
         self._remote: RemoteArmView | None = None
         self._preview = PreviewView()
         self._collision: CollisionView | None = None
-        self._program = None  # the newest ProgramView, shown when a page connects
+        self._program = None  # the newest ProgramView
+        self._program_pending = False  # it changed while no page watched: shown when one connects
         self._link_text = ""
         self._terrain_view = None
 
@@ -131,9 +132,14 @@ class Console:
                 self.drive.show_collision(event.collision)
             self._draw_collision()
         elif isinstance(event, ProgramChanged):
-            self._program = event.program
-            if self._watched():  # a long program's list is costly to build: only for a page to see
+            # a long program's list is costly to build: with no page, only the first (the panels
+            # exist from the start) and then the newest when a page connects
+            first, self._program = self._program is None, event.program
+            if self._watched() or first:
                 self._show_program(event.program)
+                self._program_pending = False
+            else:
+                self._program_pending = True
         elif isinstance(event, PreviewChanged):
             self._preview = event.preview
             self.preview.show(event.preview)
@@ -223,8 +229,9 @@ class Console:
                     self.drive.show_arm(self._arm)
                 if self._collision is not None:
                     self.drive.show_collision(self._collision)
-                if self._program is not None:
+                if self._program_pending and self._program is not None:
                     self._show_program(self._program)
+                    self._program_pending = False
                 self._draw_arm()
                 self._draw_ghost()
                 self._draw_collision()
