@@ -58,6 +58,7 @@ from shared.terrain.ground import GroundChecker
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class CellOffers:
     """What the session's cell offers the page: a terrain with placement, cameras to locate
