@@ -25,6 +25,8 @@ from shared.motion.sensors import SensorModel
 
 #: bisection steps used to place an early stop between two samples (dt / 2**N resolution)
 STOP_BISECTIONS = 30
+#: servo steps a stepper samples at once (one vectorised ``sample`` call instead of one per step)
+STEP_CHUNK = 32
 
 
 class SegmentKind(str, Enum):
@@ -216,6 +218,25 @@ class SegmentStepper:
         self._t_prev: float | None = None
         self._end = segment._end_time()
         self.result: StepResult | None = None
+        self._chunk: Samples | None = None
+        self._chunk_k = 0
+
+    def _time(self, k: int) -> float:
+        t = min(k * self.dt, self._end)
+        return self._end if self._end - t <= 1e-12 else t
+
+    def _sample(self, k: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """Step ``k``'s time and sample, from a batch sampled ``STEP_CHUNK`` steps at a time (a
+        motion is sampled at the same times whether or not it ends early, so nothing is wasted
+        but the rest of the last batch)."""
+        i = k - self._chunk_k
+        if self._chunk is None or not 0 <= i < self._chunk.t.size:
+            ts = np.array([self._time(j) for j in range(k, k + STEP_CHUNK)])
+            if ts[-1] >= self._end:  # nothing past the end
+                ts = ts[: int(np.argmax(ts >= self._end)) + 1]
+            self._chunk, self._chunk_k, i = self.segment.sample(ts), k, 0
+        chunk = self._chunk
+        return float(chunk.t[i]), chunk.q[i].copy(), chunk.qd[i].copy()
 
     @property
     def done(self) -> bool:
@@ -225,12 +246,8 @@ class SegmentStepper:
         if self.result is not None and self.result.done:
             return self.result
         seg = self.segment
-        t = min(self._k * self.dt, self._end)
-        if self._end - t <= 1e-12:
-            t = self._end
+        t, q, qd = self._sample(self._k)
         self._k += 1
-        sample = seg.sample(t)
-        q = sample.q[0]
         guarded = isinstance(seg.until, (UntilForce, UntilContact))
         if guarded and seg._triggered(t, q, self.sensors, self.t0):
             t_stop = 0.0 if self._t_prev is None else seg._refine(self._t_prev, t, self.sensors, self.t0)
@@ -242,5 +259,5 @@ class SegmentStepper:
             reason = StopReason.TIME if self._end < seg.duration else StopReason.COMPLETED
             self.result = StepResult(t, q, np.zeros_like(q), True, reason)
         else:
-            self.result = StepResult(t, q, sample.qd[0], False, None)
+            self.result = StepResult(t, q, qd, False, None)
         return self.result

@@ -90,6 +90,24 @@ def test_stepping_sample_by_sample_stops_like_run(cell, make_wall, until) -> Non
     assert stepper.step() is last  # a finished stepper stays finished
 
 
+def test_a_stepper_samples_in_batches_what_sample_gives_one_at_a_time(cell) -> None:
+    from shared.motion.segment import STEP_CHUNK
+
+    _, seg = down_to(cell, 0.40, None)
+    dt = seg.duration / (2.5 * STEP_CHUNK)  # three batches, the last one short
+    stepper = seg.stepper(FreeSpace(), dt=dt)
+    steps = []
+    while not stepper.done:
+        steps.append(stepper.step())
+    assert len(steps) > 2 * STEP_CHUNK
+    for step in steps[:-1]:
+        one = seg.sample(step.t)
+        np.testing.assert_allclose(step.q, one.q[0], atol=1e-12)
+        np.testing.assert_allclose(step.qd, one.qd[0], atol=1e-12)
+    assert steps[-1].t == seg.duration and not np.any(steps[-1].qd)
+    np.testing.assert_array_equal(steps[-1].q, seg.q_end)
+
+
 def test_sensor_time_is_on_the_callers_clock(cell) -> None:
     seen: list[float] = []
 
