@@ -406,7 +406,7 @@ class Executor:
         the statement. ``pressing`` as in ``_move_to``, on the measured force. ``stop_force``: an
         UNTIL FORCE threshold; the force monitor holds the arm within a millisecond of it."""
         q = np.asarray(q, dtype=float).copy()
-        if q.shape != self.q.shape or not np.all(np.isfinite(q)):
+        if q.shape != self.q.shape or not np.isfinite(q).all():
             raise StepFailure(f"the planner produced an unusable joint vector {np.array2string(q, precision=4)[:120]}")
         qd = np.asarray(qd, dtype=float)
         if self._complying and guarded:
@@ -418,7 +418,7 @@ class Executor:
         monitor = limit if pressing is None else None
         if stop_force is not None and monitor is not None:
             monitor = min(monitor, stop_force)
-        tripped = self.world.servo(q, qd if np.all(np.isfinite(qd)) and qd.shape == q.shape else None, monitor,
+        tripped = self.world.servo(q, qd if qd.shape == q.shape and np.isfinite(qd).all() else None, monitor,
                                    guarded=guarded)
         self._setpoint = None if tripped else q
         self._commanded = True

@@ -19,6 +19,7 @@ Everything is in SI units in the world frame. The world has no clock: the execut
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,7 +54,8 @@ class Contact:
 
     @property
     def magnitude(self) -> float:
-        return float(np.linalg.norm(self.force))
+        f = self.force
+        return math.sqrt(float(f @ f))
 
 
 @dataclass

@@ -14,7 +14,10 @@ clear of the hole it was grasped in (a grasp that slipped), and friction and cle
 
 A world at rest costs nothing: while the arm holds still, nothing is in flight and no setpoint
 changes, ``servo`` moves the clock on without stepping (the state of a settled world is a fixed
-point of the step, to within ``REST_SPEED``); the first change of setpoint wakes it.
+point of the step, to within ``REST_SPEED``); the first change of setpoint wakes it. A part of it
+at rest costs little: MuJoCo's sleeping (``SLEEP``) stops integrating and colliding an object that
+rests (a peg in its hole) while the arm moves elsewhere, until something awake touches it, and the
+world then reads its pose and hole as they were.
 """
 
 from __future__ import annotations
@@ -37,6 +40,10 @@ from shared.spatial import invert
 from shared.wire.messages import ObjectPose
 
 log = logging.getLogger(__name__)
+_NO_CONTACTS = (np.zeros(0, dtype=int), np.zeros(0, dtype=int))
+_IDENTITY = np.eye(4)
+_NO_NOISE = np.zeros(6)
+_NO_NOISE.flags.writeable = False
 
 GRAVITY = 9.81
 REST_SPEED = 1e-4
@@ -135,6 +142,8 @@ class PhysicsWorld:
 
     engine = "mujoco"
     physical = True
+    SLEEP = True
+    """Let MuJoCo put resting bodies to sleep (benchmarks switch it off to show it changes no outcome)."""
 
     def __init__(self, cell: Cell, robot: Robot, settings: WorldSettings | None = None,
                  q0: np.ndarray | None = None, servo_period: float = 0.01) -> None:
@@ -168,11 +177,13 @@ class PhysicsWorld:
         self.data.qpos[self._qadr] = q
         self._set_target(q, np.zeros_like(q))
         self.mj.mj_forward(self.model, self.data)
+        self._contact_pairs = None
         self._last_good = self.data.qpos.copy()
         w = mujoco.mjtWarning
         self._bad_warnings = [int(w.mjWARN_BADQACC), int(w.mjWARN_BADQVEL), int(w.mjWARN_BADQPOS)]
         self._bad_count = 0
-        self.settle(0.3)
+        for _ in range(max(1, int(round(0.3 / servo_period)))):  # settle; once at rest, time passes unstepped
+            self.advance(servo_period)
         self._noise = np.zeros(6)
         self._sense()
 
@@ -276,6 +287,16 @@ class PhysicsWorld:
         self._arm_only_geom = self._arm_geom & ~self._tool_geom
         self._touching = ""
         self._tune_servo()
+        # MuJoCo's own sleeping (4.0 on): a tree at rest (a peg standing in its hole, on the
+        # table) is no longer integrated or collided until something awake touches it; the arm,
+        # driven by its servo, stays awake
+        self._dof_tree: np.ndarray | None = None
+        sleep = getattr(mujoco.mjtEnableBit, "mjENBL_SLEEP", None)
+        if self.SLEEP and sleep is not None:
+            model.opt.enableflags |= int(sleep)
+            self._dof_tree = np.asarray(model.dof_treeid)
+        self._object_tree = {name: int(model.body_treeid[b]) for name, b in self._bodies.items()}
+        self._read: set[str] = set()  # objects whose pose has been read since the last forward
         self.pegs: dict[str, PegState] = {
             name: PegState(world_T_peg=self.object_poses[name].copy(), half_size=self.object_half[name].copy(),
                            in_hole=self.start_hole[name])
@@ -292,6 +313,9 @@ class PhysicsWorld:
             self.holes[name] = Hole(name, T, depth=geo.depth)
             self.hole_geometry[name] = HoleGeometry(name, T, geo.width.copy(), geo.depth)
         self._hole_T_world = {name: invert(h.world_T_hole) for name, h in self.holes.items()}
+        # the same as floats, for ``_hole_of``: hole_R_world, hole_p, half-width + 1 mm
+        self._hole_frames = [(n, (T[:3, :3].tolist(), T[:3, 3].tolist(), (self.hole_geometry[n].width / 2.0 + 1e-3).tolist()))
+                             for n, T in self._hole_T_world.items()]
 
     def _fit_objects(self) -> bool:
         """Check each object that starts in a hole fits it; narrow it to the asked clearance."""
@@ -373,7 +397,7 @@ class PhysicsWorld:
         beyond the held object's weight passes it, holds the arm where it is for the rest of the
         period (a guarded move stops within a millisecond, not a servo period). True if it did."""
         qd = np.zeros_like(q) if qd is None else qd
-        if np.array_equal(q, self._target) and np.array_equal(qd, self._target_qd):
+        if (q == self._target).all() and (qd == self._target_qd).all():  # (array_equal's checks cost more than the step's sums)
             self.advance(self.servo_period)
             return False
         self._asleep = False
@@ -399,11 +423,13 @@ class PhysicsWorld:
     def _force_beyond_payload(self) -> float:
         """The wrist force's magnitude beyond the tool's and the held object's weight (N), read
         straight from the sensor (the force monitor's fast path: no contact scan, no noise)."""
+        # |R f - w z| = |f - w R^T z|: in the sensor's frame, where R^T z is R's last row (floats:
+        # this runs every 2 ms while pressing)
         d = self.data
-        R = d.site_xmat[self._wrist_site].reshape(3, 3)
-        force = -(R @ d.sensordata[0:3])
-        force[2] += GRAVITY * (self._tool_mass + self._payload)
-        return float(np.sqrt(force @ force))
+        fx, fy, fz = d.sensordata[0:3].tolist()
+        zx, zy, zz = d.site_xmat[self._wrist_site, 6:9].tolist()
+        w = GRAVITY * (self._tool_mass + self._payload)
+        return math.sqrt((fx - w * zx) ** 2 + (fy - w * zy) ** 2 + (fz - w * zz) ** 2)
 
     def hold(self) -> None:
         """Hold the arm where it is now (a stop): the setpoint becomes the measured pose, at rest,
@@ -434,12 +460,13 @@ class PhysicsWorld:
     def advance(self, seconds: float, sense: bool = True) -> None:
         """Let ``seconds`` pass with the present setpoints (no steps while the world is at rest)."""
         n = max(1, int(round(seconds / self.params.timestep)))
-        if self._asleep:
+        if self._asleep:  # nothing moves: only the sensor's noise changes
             self.time += n * self.params.timestep
             self.skipped_steps += n
-            self._sense()
+            self.wrench = self.wrench_clean + self._noise_at(self.time)
             return
         self.mj.mj_step(self.model, self.data, nstep=n)
+        self._contact_pairs = None
         self.steps += n
         self.time += n * self.params.timestep
         if self._brake_until is not None and self.time >= self._brake_until:
@@ -447,7 +474,7 @@ class PhysicsWorld:
             self._set_target(self.q, np.zeros(self.robot.dof))  # hold where the brake stopped it
         if sense:
             d = self.data
-            speed = float(np.max(np.abs(d.qvel)))
+            speed = float(np.abs(d.qvel).max())
             if not speed < 1e3 or self._diverged():  # NaN fails the first; MuJoCo resets a diverged state itself
                 self._restore_last_good()
                 raise PhysicsUnstable(f"the physics simulation became unstable at t = {self.time:.3f} s "
@@ -455,12 +482,22 @@ class PhysicsWorld:
                                       f"stable state, at rest, and the arm holds there")
             self._last_good = d.qpos.copy()
             self._after_step()
-            self._asleep = speed < REST_SPEED and float(np.max(np.abs(d.qacc))) < 100 * REST_SPEED
+            self._asleep = speed < REST_SPEED and self._settled()
+
+    def _settled(self) -> bool:
+        """No awake degree of freedom accelerates (a tree MuJoCo put to sleep keeps the
+        acceleration it had when it fell asleep, but does not move)."""
+        d = self.data
+        if self._dof_tree is None:
+            return float(np.max(np.abs(d.qacc))) < 100 * REST_SPEED
+        awake = np.asarray(d.tree_awake, dtype=bool)[self._dof_tree]
+        return not (np.abs(d.qacc[awake]) >= 100 * REST_SPEED).any()
 
     def _diverged(self) -> bool:
         """MuJoCo met a NaN, an infinity or a huge value since the last look (it then resets the
         state to the model's initial pose, which the robot must never take for the real arm)."""
-        count = sum(int(self.data.warning[k].number) for k in self._bad_warnings)
+        number = self.data.warning.number
+        count = int(number[self._bad_warnings[0]]) + int(number[self._bad_warnings[1]]) + int(number[self._bad_warnings[2]])
         diverged = count > self._bad_count
         self._bad_count = count
         return diverged
@@ -472,6 +509,8 @@ class PhysicsWorld:
         d.qvel[:] = 0.0
         d.act[:] = 0.0 if d.act.size else d.act
         self.mj.mj_forward(self.model, d)
+        self._contact_pairs = None
+        self._read.clear()
         self._set_target(self.q, np.zeros(self.robot.dof))
 
     def settle(self, seconds: float) -> None:
@@ -485,11 +524,11 @@ class PhysicsWorld:
     # -- sensing ----------------------------------------------------------------------------------
     @property
     def q(self) -> np.ndarray:
-        return np.array(self.data.qpos[self._qadr])
+        return self.data.qpos[self._qadr]  # fancy indexing: a copy
 
     @property
     def qd(self) -> np.ndarray:
-        return np.array(self.data.qvel[self._vadr])
+        return self.data.qvel[self._vadr]
 
     def wrist_position(self) -> np.ndarray:
         """Where the wrist sensor is (world, m): the point its torques are about."""
@@ -498,29 +537,37 @@ class PhysicsWorld:
     def world_T_tcp(self, q: np.ndarray | None = None) -> np.ndarray:
         if q is not None:
             return self.cell.world_T_base @ self.robot.fk(q) @ self.cell.flange_T_tcp
-        T = np.eye(4)
+        T = _IDENTITY.copy()
         T[:3, :3] = self.data.site_xmat[self._tcp_site].reshape(3, 3)
         T[:3, 3] = self.data.site_xpos[self._tcp_site]
         return T
 
     def _object_pose(self, name: str) -> np.ndarray:
         b = self._bodies[name]
-        T = np.eye(4)
+        T = _IDENTITY.copy()
         T[:3, :3] = self.data.xmat[b].reshape(3, 3)
         T[:3, 3] = self.data.xpos[b]
         return T
 
     def _after_step(self) -> None:
-        for name, peg in self.pegs.items():
-            peg.world_T_peg = self._object_pose(name)
+        # an object MuJoCo has put to sleep has not moved since it was last read: its pose and
+        # its hole stay as they were (it is never the held one: the fingers on it keep it awake)
+        awake = self.data.tree_awake if self._dof_tree is not None else None
+        moved = [name for name in self.pegs
+                 if awake is None or awake[self._object_tree[name]] or name == self._held
+                 or self.pegs[name].held or name not in self._read]
+        for name in moved:
+            self.pegs[name].world_T_peg = self._object_pose(name)
         if (self._held is not None and self._tilt_pending and self._hole_of(self._held) is None
                 and not self._touching_static(self._held)):
             self._apply_tilt(self._held, self._tilt_pending)
             self._tilt_pending = 0.0
-        for name, peg in self.pegs.items():
+        for name in moved:
+            peg = self.pegs[name]
             peg.in_hole = self._hole_of(name)
             peg.held = name == self._held
             peg.tool_T_peg = invert(self.world_T_tcp()) @ peg.world_T_peg if peg.held else None
+            self._read.add(name)
         self._touching = self._touching_what()
         self._sense()
 
@@ -529,25 +576,23 @@ class PhysicsWorld:
         weight taken off (a tared sensor), with noise."""
         d = self.data
         R = d.site_xmat[self._wrist_site].reshape(3, 3)
-        f_site = np.array(d.sensordata[0:3])
-        t_site = np.array(d.sensordata[3:6])
-        # the sensor reads what the arm exerts on the gripper; the world exerts the opposite
+        # the sensor reads what the arm exerts on the gripper; the world exerts the opposite:
+        # force and torque (the rows) turned into the world frame at once
+        wrench = (d.sensordata[0:6].reshape(2, 3) @ -R.T).reshape(6)
         w = GRAVITY * self._tool_mass  # the tool's weight, (0, 0, -w)
-        lever = d.subtree_com[self._gripper_body] - d.site_xpos[self._wrist_site]
-        force = -(R @ f_site)
-        force[2] += w
-        torque = -(R @ t_site)
-        torque[0] -= lever[1] * w  # lever x (0, 0, -w), taken off
-        torque[1] += lever[0] * w
-        self.wrench_clean = np.concatenate([force, torque])
-        self.wrench = self.wrench_clean + self._noise_at(self.time)
+        com, wrist = d.subtree_com[self._gripper_body], d.site_xpos[self._wrist_site]
+        wrench[2] += w
+        wrench[3] -= (com[1] - wrist[1]) * w  # lever x (0, 0, -w), taken off
+        wrench[4] += (com[0] - wrist[0]) * w
+        self.wrench_clean = wrench
+        self.wrench = wrench + self._noise_at(self.time)
 
     def _noise_at(self, t: float) -> np.ndarray:
         """The sensor's noise at time ``t``: a function of the seed and the servo period's index
         only, so letting time pass at rest without reading draws the same noise afterwards."""
         sigma = self.settings.force_noise
         if sigma <= 0:
-            return np.zeros(6)
+            return _NO_NOISE
         if self._noise_table is None:  # one seeded table, read by period index (repeats after 5.5 min)
             self._noise_table = np.random.default_rng((self.settings.seed & 0xFFFFFFFF, 7)).normal(0.0, sigma, (NOISE_TABLE, 6))
         return self._noise_table[int(round(t / self.servo_period)) % NOISE_TABLE]
@@ -560,14 +605,17 @@ class PhysicsWorld:
         return Contact(force, touching=bool(self._touching), what=self._touching)
 
     def _contacts(self) -> tuple[np.ndarray, np.ndarray]:
-        d = self.data
-        n = d.ncon
-        if n == 0:
-            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-        g = np.asarray(d.contact.geom[:n])
-        dist = np.asarray(d.contact.dist[:n])
-        g = g[dist < 1e-5]
-        return g[:, 0], g[:, 1]
+        """The geom pairs in contact now (read once per state: several sensors ask each period)."""
+        if self._contact_pairs is None:
+            d = self.data
+            n = d.ncon
+            if n == 0:
+                self._contact_pairs = _NO_CONTACTS
+            else:
+                contact = d.contact
+                g = contact.geom[contact.dist < 1e-5]
+                self._contact_pairs = (g[:, 0], g[:, 1])
+        return self._contact_pairs
 
     def _touching_static(self, name: str) -> bool:
         g1, g2 = self._contacts()
@@ -580,13 +628,11 @@ class PhysicsWorld:
         g1, g2 = self._contacts()
         if g1.size == 0:
             return ""
-        tool = self._tool_geom.copy()
-        if self._held is not None:
-            tool |= self._geom_body == self._bodies[self._held]
+        tool = self._tool_geom if self._held is None else self._tool_geom | (self._geom_body == self._bodies[self._held])
         mask_tool1 = tool[g1]
         mask_tool2 = tool[g2]
         hits = (mask_tool1 & ~mask_tool2) | (mask_tool2 & ~mask_tool1)
-        if not np.any(hits):
+        if not hits.any():
             return ""
         k = int(np.flatnonzero(hits)[0])
         other = g2[k] if mask_tool1[k] else g1[k]
@@ -621,12 +667,17 @@ class PhysicsWorld:
     def _hole_of(self, name: str) -> str | None:
         """The hole an object's foot is inside (below the mouth, within the hole's width)."""
         peg = self.pegs[name]
-        foot = peg.world_T_peg[:3, 3] - peg.world_T_peg[:3, 2] * peg.half_size[2]
-        for hole in self.holes.values():
-            local = self._hole_T_world[hole.name] @ np.array([*foot, 1.0])
-            geo = self.hole_geometry[hole.name]
-            if local[2] < 0.0 and np.all(np.abs(local[:2]) <= geo.width / 2.0 + 1e-3):
-                return hole.name
+        T = peg.world_T_peg
+        h = float(peg.half_size[2])
+        x, y, z = T[0, 3] - T[0, 2] * h, T[1, 3] - T[1, 2] * h, T[2, 3] - T[2, 2] * h  # its foot
+        for hole, (r, p, reach) in self._hole_frames:  # a few holes: plain floats beat numpy here
+            lz = r[2][0] * x + r[2][1] * y + r[2][2] * z + p[2]
+            if lz >= 0.0:
+                continue
+            lx = r[0][0] * x + r[0][1] * y + r[0][2] * z + p[0]
+            ly = r[1][0] * x + r[1][1] * y + r[1][2] * z + p[1]
+            if abs(lx) <= reach[0] and abs(ly) <= reach[1]:
+                return hole
         return None
 
     # -- the gripper ------------------------------------------------------------------------------
@@ -721,6 +772,7 @@ class PhysicsWorld:
         mujoco.mju_mat2Quat(quat, T[:3, :3].ravel())
         self.data.qpos[a + 3:a + 7] = quat
         mujoco.mj_forward(self.model, self.data)
+        self._contact_pairs = None
         self.pegs[name].world_T_peg = T
 
     # -- the executor's queries (kinematic-world interface) -----------------------------------------
