@@ -45,7 +45,7 @@ from server.console import (
     Session,
     TerrainChanged,
 )
-from server.console.events import TaskChanged
+from server.console.events import TaskChanged, WorkProgress
 from server.trials.service import TrialBatches
 from webui.actions import Actions
 from webui.ghost import RemoteGhost
@@ -196,6 +196,8 @@ class Console:
         elif isinstance(event, TaskChanged):
             if self.task is not None:
                 self.task.show(event.task)
+        elif isinstance(event, WorkProgress):
+            self.status.show_work(event)
         elif isinstance(event, Notice):
             if self.stop is not None:
                 self.stop.show_notice(event)

@@ -21,6 +21,7 @@ from server.console import (
     Regime,
     RegimeView,
     Session,
+    WorkProgress,
 )
 from webui.actions import Actions
 from webui.notice_log import NoticeBoard, session_kind
@@ -81,6 +82,11 @@ class StatusBar:
         self.resync = gui.add_button("Re-sync from robot", color="orange", visible=False,
                                      hint="put the virtual arm and moved objects where the robot reports them")
         self.resync.on_click(lambda _: self.actions.run("re-sync", self.session.resync))
+        # long work off the console's loop (a program file's load, the task's replay): a line
+        # and a bar while it runs, gone when it ends
+        self.work_line = gui.add_markdown("", visible=False)
+        self.work_bar = gui.add_progress_bar(0.0, visible=False, animated=False)
+        self._works: dict[int, WorkProgress] = {}
         self.notice = gui.add_markdown("")
         self.board = board if board is not None else NoticeBoard()
         with gui.add_folder("Notice log", expand_by_default=False):
@@ -138,6 +144,21 @@ class StatusBar:
             self.divergence.content = f"**Divergence:** {text}"
         self.divergence.visible = view.diverged
         self.resync.visible = view.diverged
+
+    def show_work(self, event: WorkProgress) -> None:
+        """The newest work still running, with its step and how much is done; none: hidden."""
+        if event.finished:
+            self._works.pop(event.id, None)
+        else:
+            self._works[event.id] = event
+        running = max(self._works.values(), key=lambda w: w.id, default=None)
+        if running is None:
+            self.work_line.visible = self.work_bar.visible = False
+            return
+        others = f" (and {len(self._works) - 1} more)" if len(self._works) > 1 else ""
+        self.work_line.content = f"**{running.what[:1].upper()}{running.what[1:]}**: {running.phase}, {running.fraction:.0%}{others}"
+        self.work_bar.value = 100.0 * running.fraction
+        self.work_line.visible = self.work_bar.visible = True
 
     def show_notice(self, level: str, message: str, rule: str | None = None) -> None:
         """A notice the session said (or a caller without a kind): it stands until its kind's

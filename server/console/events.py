@@ -48,6 +48,8 @@ __all__ = [
     "ActionTaken",
     "RangeSubmitted",
     "TaskChanged",
+    "WorkKind",
+    "WorkProgress",
     "SessionEvent",
 ]
 
@@ -171,12 +173,30 @@ class TaskChanged(_View):
     task: TaskView
 
 
+WorkKind = Literal["load", "task_play"]
+
+
+class WorkProgress(_View):
+    """Long work under way off the console's loop (``server.console.work``): a program file's
+    load, the task monitor's replay of a range. Published once it has run 0.3 s, then at most
+    every 0.2 s, and once more with ``finished`` when it ends."""
+
+    type: Literal["work"] = "work"
+    id: int = Field(description="one run of the work: its events share it")
+    work: WorkKind
+    what: str = Field(description="what it does, for a person (\"loading big.tp\")")
+    phase: str = Field(description="the step it is in (load: parse, check, plan, format)")
+    fraction: float = Field(ge=0.0, le=1.0, description="how much of it is done")
+    elapsed_s: float = Field(ge=0.0)
+    finished: bool = False
+
+
 SessionEvent = Annotated[
     Union[
         ArmChanged, ProgramChanged, PreviewChanged, SentChanged, LinkChanged, RemoteArmChanged,
         PredictedPathChanged, CollisionChanged, RegimeChanged, DisplayModeChanged, DivergenceChanged,
         ControlChanged, TerrainChanged, PlacementChanged, ReadinessChanged, Notice, ActionTaken,
-        RangeSubmitted, TaskChanged,
+        RangeSubmitted, TaskChanged, WorkProgress,
     ],
     Field(discriminator="type"),
 ]

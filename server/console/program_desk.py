@@ -43,6 +43,8 @@ from server.console.errors import ConflictError, ConsoleLineAdded, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
 from server.console.program_entries import EntryViews
+from server.console.program_files import LOAD_PHASES, read_program
+from server.console.work import Work
 from server.console.views import (
     Caller,
     ProgramView,
@@ -52,7 +54,7 @@ from server.console.views import (
 )
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program, format_statement
-from shared.language.parser import parse_json, parse_program, parse_statement
+from shared.language.parser import parse_statement
 from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
 from shared.motion.prefix_planner import PrefixPlanner
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
@@ -75,6 +77,7 @@ class ConsoleLine:
     statement: Statement
     reason: str
     regime: Regime  # the regime whose need it was
+
 
 
 @dataclass
@@ -248,32 +251,32 @@ class ProgramDesk:
 
     def load(self, text: str, filename: str = "program.tp", *, client: Caller | str | None = None) -> ProgramView:
         """Replace the program by a file's content (text, or JSON for a .json name); control is
-        checked before the costly parse; a broken file is an ``InputError`` at file:line:col."""
+        checked before the costly parse; a broken file is an ``InputError`` at file:line:col. The
+        reading runs outside the session's lock (``program_files``), which is taken to check
+        control again and put the program, its plan and its lines in place."""
         with self._ctx.lock:
             self._control.check(client)
+            start = ProgramStart(self.start.q.copy(), self.start.source, self.start.unknown)
         name = PurePath(filename).name or "program"
-        parsed = parse_json(text, name) if name.lower().endswith(".json") else parse_program(text, name)
-        if not parsed.ok:
-            lines = parsed.error_lines()
-            more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
-            raise InputError(lines[0] + more)
-        state = ProgramState.of(parsed.statements)  # InputError when the rules are broken
-        for i, st in enumerate(parsed.statements):
-            try:
-                checked_statement(st)
-            except TeleprogError as exc:
-                raise InputError(f"{name}: statement {i + 1}: {exc}") from None
-        with self._ctx.lock:
-            self._control.check(client)
-            self.check_not_previewing("load a program")
-            self._editor = Editor(state)
-            self._confirmed = None
-            self._console_lines.clear()
-            self._declined.clear()
-            self._refusal = None
-            self._last_generated = None
-        view = self.view()
-        self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {len(parsed.statements)} statement(s) from {name}")])
+        with Work(self._ctx.bus, self._ctx.clock, "load", f"loading {name}", LOAD_PHASES) as work:
+            read = read_program(text, name, self._ctx.cell, None if start.unknown else start.q, work)
+            with self._ctx.lock:
+                self._control.check(client)
+                self.check_not_previewing("load a program")
+                self._editor = Editor(read.state)
+                self._confirmed = None
+                self._console_lines.clear()
+                self._declined.clear()
+                self._refusal = None
+                self._last_generated = None
+                self._entries = read.entries
+                now = self.start
+                if read.planner is not None and np.array_equal(now.q, start.q) and not now.unknown:  # start unmoved
+                    self._planner = (start.q.tobytes(), read.planner)
+                    self._durations = ((tuple(self._editor.state.statements), start.q.tobytes(), False), read.durations)
+                view = self.view()
+        n = len(read.state.statements)
+        self._ctx.bus.emit([ProgramChanged(program=view), Notice(level="info", message=f"loaded {n} statement(s) from {name}")])
         return view
 
     def save(self, fmt: str = "text") -> str:

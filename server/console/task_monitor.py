@@ -24,9 +24,10 @@ session's lock is released; this part has its own lock.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +35,7 @@ from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT
 from server.console.events import ArmChanged, PreviewChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
 from server.console.views import ActionView, DeviationView, PreviewView, RemoteArmView, RuleView, TaskView
+from server.console.work import Work
 from server.delivery import Delivery
 from shared.cells.object_world import ObjectWorld
 from shared.motion.frames import CellFrames
@@ -283,11 +285,21 @@ class TaskMonitor:
         cell = self._ctx.cell
         world = ObjectWorld(cell)
         world.take_reported(poses, held, self._frames.world_T_tcp(cell.robot, np.asarray(start_q)))
+        statements = list(statements)
         try:
-            return recognise_program(list(statements), cell, self.space, np.asarray(start_q), world)
+            with self._work(f"recognising the task in the {len(statements)} statement(s) previewed") as step:
+                return recognise_program(statements, cell, self.space, np.asarray(start_q), world, progress=step)
         except Exception as exc:  # the preview itself reports planning problems; the panel just goes without
             log.warning("could not play the previewed range for the task panel: %s", exc)
             return None
+
+    @contextlib.contextmanager
+    def _work(self, what: str) -> Iterator[Callable[[int, int], None]]:
+        """A play as a long work (``WorkProgress`` once it runs past 0.3 s): the progress
+        function ``recognise_program`` calls with the statements played."""
+        with Work(self._ctx.bus, self._ctx.clock, "task_play", what, (("recognise", 1.0),)) as work:
+            work.phase("recognise", 1)
+            yield work.advance
 
     def _preview_state(self, play: _PreviewPlay, t: float) -> tuple:
         rec = play.recognition
@@ -312,7 +324,9 @@ class TaskMonitor:
         if r is not None:
             world.take_reported({k: np.asarray(v) for k, v in r.object_poses.items()}, r.held, np.asarray(r.world_T_tcp))
         try:
-            result = recognise_program(parsed.statements, self._ctx.cell, self.space, np.asarray(event.start_q), world)
+            with self._work(f"recognising the task in the {len(parsed.statements)} statement(s) sent") as step:
+                result = recognise_program(parsed.statements, self._ctx.cell, self.space, np.asarray(event.start_q), world,
+                                           progress=step)
         except Exception as exc:
             log.warning("could not play the submitted range for task monitoring: %s", exc)
             return {}

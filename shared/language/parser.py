@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -426,8 +427,13 @@ def _too_large(text: str | bytes) -> ParseError | None:
     return None
 
 
-def parse_program(text: str, path: str = "<text>") -> ParsedProgram:
-    """Parse the text form; never raises for bad input, returns every error instead."""
+PROGRESS_EVERY = 500
+"""Lines (statements, for checks and planning) between two progress reports of a long program."""
+
+
+def parse_program(text: str, path: str = "<text>", progress: Callable[[int, int], None] | None = None) -> ParsedProgram:
+    """Parse the text form; never raises for bad input, returns every error instead.
+    ``progress(lines done, lines)`` is called every ``PROGRESS_EVERY`` lines of a long text."""
     too_large = _too_large(text)
     if too_large is not None:
         return ParsedProgram([], [], [too_large], path)
@@ -435,7 +441,10 @@ def parse_program(text: str, path: str = "<text>") -> ParsedProgram:
     lines: list[int | None] = []
     cols: list[int | None] = []
     errors: list[ParseError] = []
-    for number, raw in enumerate(text.split("\n"), start=1):
+    raw_lines = text.split("\n")
+    for number, raw in enumerate(raw_lines, start=1):
+        if progress is not None and number % PROGRESS_EVERY == 0:
+            progress(number, len(raw_lines))
         body = _strip_comment(raw)
         if not body.strip():
             continue

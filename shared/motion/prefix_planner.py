@@ -12,12 +12,13 @@ statement's planning instead of n.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from shared.cells.cell import Cell
 from shared.errors import InputError, TeleprogError
+from shared.language.parser import PROGRESS_EVERY
 from shared.language.statements import Statement
 from shared.motion.frames import CellFrames
 from shared.motion.interpreter import Interpreter, InterpreterState, Plan
@@ -39,10 +40,11 @@ class PrefixPlanner:
         self._segments: list[Segment] = []  # its segments up to its first refusal
         self._states: list[InterpreterState] = [self._interp.state]  # the state before each segment, and after the last
 
-    def plan(self, statements: Sequence[Statement]) -> Plan:
+    def plan(self, statements: Sequence[Statement], progress: Callable[[int], None] | None = None) -> Plan:
         """Every statement planned in order, stopping at the first refusal, as ``plan_program``.
         A numerical failure of the planner (an overflow, a NaN reaching an index) is refused as
-        ``InputError`` naming it, as ``plan_or_refuse`` does."""
+        ``InputError`` naming it, as ``plan_or_refuse`` does. ``progress(statements planned)``
+        is called every ``PROGRESS_EVERY`` statements planned anew."""
         statements = list(statements)
         same = 0
         for old, new in zip(self._statements, statements):
@@ -55,7 +57,9 @@ class PrefixPlanner:
         self._statements = statements[:keep]
         self._interp.restore(self._states[keep])
         refusal: PlanRefused | None = None
-        for statement in statements[keep:]:
+        for k, statement in enumerate(statements[keep:], start=keep):
+            if progress is not None and k % PROGRESS_EVERY == 0 and k > keep:
+                progress(k)
             try:
                 with np.errstate(all="ignore"):
                     segment = self._interp.plan_next(statement)

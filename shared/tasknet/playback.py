@@ -11,7 +11,7 @@ robot's ``extract_peg`` lifts.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,9 +70,11 @@ def play(plan: Plan, cell, world: ObjectWorld, dt: float = SAMPLE_DT_S) -> Itera
 
 
 def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None,
-                      world: ObjectWorld | None = None) -> ProgramRecognition:
+                      world: ObjectWorld | None = None,
+                      progress: Callable[[int, int], None] | None = None) -> ProgramRecognition:
     """Play ``program`` on ``cell`` from ``start_q`` (the cell's home pose) with the objects of
-    ``world`` (changed in place; the cell as loaded when None) and recognise it."""
+    ``world`` (changed in place; the cell as loaded when None) and recognise it.
+    ``progress(statements played, statements)`` is called as the play enters each statement."""
     robot = cell.robot
     plan = plan_program(program, robot, cell, start_q)
     frames = CellFrames.from_cell(cell)
@@ -80,8 +82,12 @@ def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, star
     contacts = ContactModel(space, cell)
     coordinator = TaskCoordinator(space, contacts, CellState.of_world(world, frames.world_T_tcp(robot, plan.q_start)))
     samples = 0
+    current = None
     for q, t, number in play(plan, cell, world):
         samples += 1
+        if progress is not None and number != current:
+            current = number
+            progress(max(0, (number or 1) - 1), len(program))
         coordinator.observe(CellState.of_world(world, frames.world_T_tcp(robot, q)), t, number)
     actions = tuple(coordinator.actions)
     net = generate_task_net(space, coordinator.m0, [a.action for a in actions])
