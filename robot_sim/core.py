@@ -24,6 +24,7 @@ non-final ``rejected``; an error escaping a servo tick is logged with its traceb
 
 from __future__ import annotations
 
+import itertools
 import logging
 import uuid
 
@@ -31,11 +32,15 @@ from pydantic import BaseModel
 
 from robot_sim.executor import Executor
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
+from shared.language.formatter import format_statement
 from shared.wire.messages import (
+    MAX_HELD_LISTED,
+    MAX_HELD_TEXT,
     MAX_TEXT,
     AbortFlush,
     HaltCause,
     Halted,
+    HeldStatement,
     Heartbeat,
     Rejected,
     RejectReason,
@@ -129,7 +134,18 @@ class RobotCore:
             "heartbeat_s": self.heartbeat_s,
             "silence_limit_s": self.silence_limit_s,
             "halted": self.executor.halted[:MAX_TEXT] if self.executor.halted else None,
+            "holds": self._holds(),
+            "holds_total": len(self.executor.queue) + (self.executor.current is not None),
         })
+
+    def _holds(self) -> list[HeldStatement]:
+        """What the robot holds, running first, then queued in order (for a console that
+        connects, restarted or not, to show before anybody resumes)."""
+        ex, senders = self.executor, self.receiver.senders
+        held = [] if ex.current is None else [(*ex.current, True)]
+        held += [(n, s, False) for n, s in itertools.islice(ex.queue, MAX_HELD_LISTED - len(held))]
+        return [HeldStatement(number=n, text=_cut(format_statement(s), MAX_HELD_TEXT), running=running,
+                              client_id=senders.get(n)) for n, s, running in held]
 
     def _apply(self, step: ReceiverStep) -> list[BaseModel]:
         out: list[BaseModel] = list(step.replies)
@@ -256,3 +272,7 @@ class RobotCore:
 def _seconds(value: float) -> str:
     """A setting in seconds as people write it: 1.0, 0.2, 0.05."""
     return f"{value:.1f}" if round(value, 1) == value else f"{value:g}"
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."

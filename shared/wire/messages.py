@@ -161,6 +161,20 @@ class Hello(_Model):
     last_acked_command: int = Field(0, ge=0, description="newest recovery command acknowledged")
 
 
+MAX_HELD_LISTED = 5000
+"""Statements a welcome lists at most (the robot's buffer holds 5,000 by default)."""
+MAX_HELD_TEXT = 200
+
+
+class HeldStatement(_Model):
+    """A statement the robot holds: running now, or queued behind it."""
+
+    number: int = Field(ge=1, description="the robot's number of the statement")
+    text: str = Field(max_length=MAX_HELD_TEXT, description="the statement in the language (cut at 200 characters)")
+    running: bool = Field(False, description="the statement the robot is executing (or was, when it stopped)")
+    client_id: str | None = Field(None, max_length=64, description="the client that sent it")
+
+
 class Welcome(_Model):
     """The robot's reply to ``hello``; followed by replays of missed answers and reports."""
 
@@ -180,6 +194,11 @@ class Welcome(_Model):
         0.0, ge=0.0, le=3600.0,
         description="how long the hello waited at the robot for its core to be built: not part of the round trip",
     )
+    holds: list[HeldStatement] = Field(
+        default_factory=list, max_length=MAX_HELD_LISTED,
+        description="what the robot holds now, running first, then queued in order (a restarted console shows them)",
+    )
+    holds_total: int = Field(0, ge=0, description="how many statements it holds (more than listed when the list is cut)")
 
 
 class Heartbeat(_Model):

@@ -100,6 +100,7 @@ class CommandReceiver:
         self.reports: list[StatusReport] = []
         self._clients: dict[str, _ClientState] = {}
         self._client: str | None = None  # client bound to the current connection
+        self.senders: dict[int, str] = {}  # statement number -> the client that sent it
 
     # -- connection ---------------------------------------------------------------------------
 
@@ -205,6 +206,8 @@ class CommandReceiver:
         self.next_number += len(statements)
         step = self._answer(client, Accepted(comm_id=comm_id, numbers=numbers))
         step.accepted = list(zip(numbers, statements))
+        if self._client is not None:
+            self.senders.update(dict.fromkeys(numbers, self._client))
         step.replies += [self.report(n, StatementState.RECEIVED) for n in numbers]
         return step
 

@@ -240,3 +240,26 @@ def test_a_rejected_unit_says_why() -> None:
     replies = core.on_unit(unit)
     rejected = [r for r in replies if isinstance(r, Rejected)]
     assert rejected and rejected[0].statement_index == 0 and "JUMP" in (rejected[0].detail + (rejected[0].statement or ""))
+
+
+def test_a_restarted_console_is_told_what_the_robot_holds() -> None:
+    s = VirtualSession()
+    s.submit(PEG_TRANSFER)
+    s.run(s.params.delay_s + 2.0)  # the program arrived and runs
+    s.cut()
+    s.run(2.0)  # silence: the robot stops and holds its buffer
+    s.sender = CommandSender("console-restarted")  # a new console process, knowing nothing
+    s.open()
+    s.run(2 * s.params.delay_s + 0.1)
+    welcome = [m for m in s.received if m.type == "welcome"][-1]
+    ex = s.robot.executor
+    held = [ex.current[0]] if ex.current is not None else []
+    held += [n for n, _ in ex.queue]
+    assert held and welcome.holds_total == len(held) and welcome.halted
+    assert [h.number for h in welcome.holds] == held
+    assert welcome.holds[0].running == (ex.current is not None)
+    assert not any(h.running for h in welcome.holds[1:])
+    texts = {n: st for n, st in zip(range(1, len(PEG_TRANSFER) + 1), PEG_TRANSFER)}
+    for h in welcome.holds:
+        assert parse_program(h.text).statements[0] == texts[h.number]  # the text is the statement
+        assert h.client_id == "console-test"  # sent by the console before the restart
