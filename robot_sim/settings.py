@@ -9,6 +9,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from shared.language import bounds
 from shared.paths import DEFAULT_CELL, USER_CACHE_DIR, CacheDir
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
 from shared.wire.telemetry import FRAME_RATE_HZ
@@ -44,7 +45,7 @@ class ExecutorSettings(BaseModel):
     max_force: float = Field(80.0, gt=0.0, description="force (N) that stops any motion, guarded or not")
     touch_force: float = Field(3.0, gt=0.0, description="force (N) a task's guarded descent stops at")
     extract_limit: float = Field(40.0, gt=0.0, description="pull (N) at which extraction gives up: the peg is stuck")
-    task_speed: float = Field(0.2, gt=0.0, le=1.0, description="speed of task motions (fraction of maximum)")
+    task_speed: float = Field(0.2, ge=bounds.MIN_SPEED_FRACTION, le=1.0, description="speed of task motions (fraction of maximum)")
     search_pitch: float = Field(0.001, gt=0.0, description="spacing of the turns of the physics' spiral search (m)")
     search_speed: float = Field(0.01, gt=0.0, le=0.1, description="sliding speed of the physics' spiral search (m/s)")
     force_gain: float = Field(0.0005, gt=0.0, description="the search's force loop: vertical speed per newton of force error (m/s/N)")
@@ -53,7 +54,8 @@ class ExecutorSettings(BaseModel):
     interference_zones: bool = Field(True, description="route joint moves round the arm's interference zones (seed 001)")
     collision_checks: bool = Field(True, description="stop on any contact of the arm with the cell (collision core)")
     gripper_time: float = Field(0.4, gt=0.0, le=5.0, description="time the fingers get to close or open (s, physics)")
-    guarded_speed: float = Field(0.01, gt=0.0, le=0.1, description="speed of a task's guarded moves towards contact (m/s, physics)")
+    guarded_speed: float = Field(0.01, ge=bounds.MIN_LINEAR_SPEED_M_S, le=0.1,
+                                 description="speed of a task's guarded moves towards contact (m/s, physics)")
     press_force: float = Field(12.0, gt=0.0, description="push (N) with which an insertion presses a peg onto a chamfer or edge (physics)")
     press_settle: float = Field(0.15, ge=0.0, le=2.0, description="time the compliance gets to slide a pressed peg in (s, physics)")
     seat_force: float = Field(25.0, gt=0.0, description="push (N) with which an insertion that stopped short tries to seat its peg (physics)")

@@ -4,9 +4,10 @@ the link, the remote arm, the predicted path, divergence and re-sync."""
 from __future__ import annotations
 
 from fastapi import APIRouter, HTTPException
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from server.api.deps import ClientDep, SessionDep
+from server.api_models import MAX_COUNT, ApiIn
 from server.console import (
     DivergenceView,
     LinkView,
@@ -19,13 +20,14 @@ from server.console import (
 router = APIRouter(prefix="/api", tags=["robot"])
 
 
-class SubmitIn(BaseModel):
-    start: int = Field(0, ge=0)
-    stop: int = Field(description="one past the last statement to send")
+class SubmitIn(ApiIn):
+    start: int = Field(0, ge=0, le=MAX_COUNT)
+    stop: int = Field(le=MAX_COUNT, description="one past the last statement to send")
 
 
-class SkipIn(BaseModel):
-    number: int | None = Field(None, ge=1, description="robot number; default the one running")
+class SkipIn(ApiIn):
+    number: int | None = Field(None, ge=1, le=MAX_COUNT, description="robot number; default the one running "
+                               f"(at most {MAX_COUNT}: no session numbers more statements)")
 
 
 @router.post("/submit", response_model=SentListView)

@@ -3,10 +3,26 @@ submitted with the statuses it went through (``teleprog record summary``)."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+from typing import TypeVar
+
+from pydantic import BaseModel, Field, ValidationError
 
 from server.recording import records
-from server.recording.reader import Recording
+from server.recording.reader import RecordedMessage, Recording
+from shared.errors import InputError
+
+_M = TypeVar("_M", bound=BaseModel)
+
+
+def _record(recording: Recording, model: type[_M], m: RecordedMessage) -> _M:
+    """A message as the record the console wrote; ``InputError`` (damaged recording) when it is not one."""
+    try:
+        return model.model_validate(m.data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err.get("loc", ())) or "the message"
+        raise InputError(f"{recording.path}: damaged recording: a {m.topic} message is not one the console writes "
+                         f"({where}: {err.get('msg', 'invalid')})") from None
 
 
 class StatementSummary(BaseModel):
@@ -35,7 +51,7 @@ class RecordingSummary(BaseModel):
 def summarize(recording: Recording) -> RecordingSummary:
     by_id: dict[int, StatementSummary] = {}
     for m in recording.on(records.STATUS):
-        s = records.StatementStatus.model_validate(m.data)
+        s = _record(recording, records.StatementStatus, m)
         have = by_id.get(s.id)
         if have is None:
             have = by_id[s.id] = StatementSummary(id=s.id, number=s.number, text=s.text, final=None, statuses=[])
@@ -53,7 +69,7 @@ def summarize(recording: Recording) -> RecordingSummary:
         cell=start.cell if start else None, robot=start.robot if start else None,
         start=recording.start_ns * 1e-9 if recording.messages else None, duration_s=recording.duration_s,
         messages=len(recording.messages), channels=recording.counts(),
-        dropped=records.Dropped.model_validate(dropped[-1].data).total if dropped else 0,
+        dropped=_record(recording, records.Dropped, dropped[-1]).total if dropped else 0,
         statements=[by_id[k] for k in sorted(by_id)],
     )
 

@@ -5,7 +5,9 @@ line), and its lifespan starts viser on a private loopback port and builds the r
 (``webui.replay``), served under ``settings.viser_prefix`` by the same relay as the console.
 The API drives the same playhead as the page: ``GET /api/replay``, ``GET /api/replay/marks``,
 ``POST /api/replay/seek|play|pause|step|open``, and ``GET /api/sessions`` lists the recordings of
-the folder (the recording's own, or ``--dir``). Nothing here reaches a robot.
+the folder (the recording's own, or ``--dir``). ``open`` takes names inside that folder only (and
+the command line's own file by its name): a path leading out, a FIFO or a device is refused, and
+no refusal quotes a file's bytes. Nothing here reaches a robot.
 """
 
 from __future__ import annotations
@@ -50,7 +52,8 @@ class PlayIn(BaseModel):
 
 
 class OpenIn(BaseModel):
-    name: str = Field(description="a recording's file name in the folder GET /api/sessions lists, or a path")
+    name: str = Field(max_length=4096, description="a recording's file name in the folder GET /api/sessions lists "
+                      "(a path must lead into that folder; the file named on the command line opens by its name)")
 
 
 def create_replay_app(path: str | Path, settings: ConsoleSettings | None = None, *, folder: Path | None = None,
@@ -137,7 +140,8 @@ def create_replay_app(path: str | Path, settings: ConsoleSettings | None = None,
         return player.view()
 
     @app.post("/api/replay/open", response_model=ReplayView, tags=["replay"],
-              responses={400: {"description": "not a recording, or its cell cannot be loaded"}})
+              responses={400: {"description": "a name outside the replay's folder, not a regular file, not a "
+                                               "recording, damaged where the session starts, or its cell cannot be loaded"}})
     def open_recording(body: OpenIn, request: Request) -> ReplayView:
         player = player_of(request)
         player.open(body.name)

@@ -19,14 +19,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, ValidationError
 
-from server.recording.reader import Recording, read_recording
+from server.recording.reader import Recording, list_recordings, read_recording
 from server.replay.comparison import RangeComparison, compare_ranges
 from server.replay.timeline import Mark, Moment, Timeline
 from shared.cells.cell import Cell
 from shared.cells.loader import load_cell
 from shared.errors import InputError
+from shared.files import name_in_folder, regular_file, shown_name
 from shared.paths import PROJECT_DIR
 
 log = logging.getLogger(__name__)
@@ -48,21 +49,36 @@ class OpenedReplay:
 
 def open_replay(path: str | Path) -> OpenedReplay:
     """Read ``path`` and everything the replay needs of it (``InputError`` with a sentence when
-    it is not a recording, holds nothing, or its cell cannot be loaded)."""
+    it is not a recording, is damaged where the session starts, holds nothing, or its cell cannot
+    be loaded). ``path`` is taken as given: a name a client gives goes through
+    ``ReplayPlayer.open``, which keeps it inside the replay's folder."""
     path = Path(path)
     recording = read_recording(path)
     start = recording.session
     if start is None:
+        if recording.damage:
+            raise InputError(f"{path}: damaged recording: {recording.damage}; the session start was in what is lost")
         raise InputError(f"{path}: the recording holds no session start (nothing of the session could be read)")
     cell_path = Path(start.cell_file)
     if not cell_path.is_absolute():
         cell_path = PROJECT_DIR / cell_path
     try:
+        regular_file(cell_path, "cell file")  # a recording names its cell: never a FIFO to wait on
         cell = load_cell(cell_path)
     except InputError as exc:
         raise InputError(f"{path}: the cell it was recorded on cannot be loaded: {exc}") from None
-    timeline = Timeline(recording)
-    return OpenedReplay(path, recording, timeline, cell, compare_ranges(recording, cell.world_T_base))
+    except OSError as exc:
+        raise InputError(f"{path}: the cell it was recorded on cannot be loaded: {cell_path}: "
+                         f"{exc.strerror or type(exc).__name__}") from None
+    try:
+        timeline = Timeline(recording)
+        comparisons = compare_ranges(recording, cell.world_T_base)
+    except ValidationError as exc:  # a record that is valid JSON but not what the console writes
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err.get("loc", ())) or "a record"
+        raise InputError(f"{path}: damaged recording: a record is not one the console writes "
+                         f"({exc.title}: {where}: {err.get('msg', 'invalid')})") from None
+    return OpenedReplay(path, recording, timeline, cell, comparisons)
 
 
 class MarkOut(BaseModel):
@@ -104,6 +120,7 @@ class ReplayPlayer:
 
     def __init__(self, opened: OpenedReplay, folder: Path) -> None:
         self.folder = Path(folder)
+        self._given = opened.path  # the file named on the command line, wherever it is
         self._lock = threading.RLock()
         self._opened = opened
         self._t_ns = opened.timeline.start
@@ -131,11 +148,30 @@ class ReplayPlayer:
     def on_open(self, listener: Callable[[OpenedReplay], None]) -> None:
         self._open_listeners.append(listener)
 
-    def open(self, path: str | Path) -> OpenedReplay:
-        """Open another recording (a name in the folder, or a path); raises ``InputError``."""
-        path = Path(path)
-        if not path.is_absolute() and not path.exists():
-            path = self.folder / path
+    def path_of(self, name: str | Path) -> Path:
+        """Where the recording a client names is: inside ``folder`` only (a name, or a path that
+        leads into it; ``..``, another absolute path or a symlink leading out is refused), or the
+        file given on the command line, by its own name. ``InputError`` names what is refused."""
+        name = str(name)
+        own = name == self._given.name  # the command line's file, by its name
+        try:
+            path = name_in_folder(self.folder, name, "recording")
+        except InputError:
+            if own:
+                return self._given
+            raise
+        if not path.exists():
+            if own:
+                return self._given
+            names = [r.name for r in list_recordings(self.folder)]
+            listed = ", ".join(names[:10]) + (f" (and {len(names) - 10} more)" if len(names) > 10 else "")
+            raise InputError(f"no recording {shown_name(name)} in {self.folder.resolve()}; valid: {listed or '(none)'}")
+        return path
+
+    def open(self, name: str | Path) -> OpenedReplay:
+        """Open another recording by its name in the folder (``path_of``); raises ``InputError``
+        (a name outside the folder, a special file, a damaged or foreign file)."""
+        path = self.path_of(name)
         opened = open_replay(path)
         with self._lock:
             self._opened = opened

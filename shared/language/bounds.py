@@ -28,11 +28,27 @@ MAX_LINEAR_SPEED_M_S = 10.0
 MAX_ANGULAR_SPEED_RAD_S = 20.0
 """Largest joint or rotation speed (rad/s), about 1146 deg/s."""
 
+MAX_MOTION_S = 8 * 3600.0
+"""Longest one motion may take (s): a working day. The slowest speeds below keep every motion a
+robot of this project can make well within it; the planner refuses any motion planned longer
+(``shared.motion.interpreter``), so no statement keeps a robot busy for days."""
+
+MIN_SPEED_FRACTION = 1e-3
+"""Slowest fraction of the robot's maximum speed a statement may hold (0.1 %)."""
+
+MIN_LINEAR_SPEED_M_S = 1e-4
+"""Slowest tool-point speed (m/s), 0.1 mm/s: 2.88 m in ``MAX_MOTION_S``, longer than any line a
+robot here can draw (the PUMA's reach is under 1 m, the rover's terrain 1.1 m wide)."""
+
+MIN_ANGULAR_SPEED_RAD_S = math.radians(0.1)
+"""Slowest joint or rotation speed (rad/s), 0.1 deg/s: the longest joint travel the angle bound
+allows (1440 deg, from -720 to 720 deg) takes 4 h, half of ``MAX_MOTION_S``."""
+
 MAX_FORCE_N = 10_000.0
 """Largest force threshold of ``UNTIL FORCE`` (N)."""
 
 MAX_TIME_S = 3600.0
-"""Longest ``UNTIL TIME`` (s): one hour."""
+"""Longest ``UNTIL TIME`` (s): one hour (within ``MAX_MOTION_S``)."""
 
 MAX_JOINTS = 32
 """Most joint values in a MOVE and the highest joint number of a DRIVE."""

@@ -38,6 +38,7 @@ from shared.language import bounds
 from shared.language.json_form import JSONFormFault, loads_located, pointer, validation_faults
 from shared.language.statements import (
     DEFAULT_FRAME,
+    SPEED_MIN,
     SPEED_TEXT_UNIT,
     Draw,
     Drive,
@@ -346,6 +347,11 @@ class _Line:
         value = self.si(num, u, "speed")
         if not value > 0.0:
             raise _Fail(num.col, f"a speed must be above zero, got {_clip(num.text)} {u.value}")
+        slowest = SPEED_MIN[_SPEED_UNITS[u]]
+        if value < slowest * (1.0 - 1e-9):
+            raise _Fail(num.col, f"speed = {_clip(num.text)} {u.value} is below the slowest speed bound of "
+                                 f"{slowest * _TEXT_BOUND[u][1]:.6g} {u.value} (a motion at it could not finish "
+                                 f"within {bounds.MAX_MOTION_S / 3600.0:g} h)")
         return Speed(value=value, unit=_SPEED_UNITS[u])
 
     def action(self, model: type, fields: dict, *, cartesian: bool) -> Statement:

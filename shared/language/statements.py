@@ -129,11 +129,19 @@ SPEED_BOUND: dict[SpeedUnit, float] = {
     SpeedUnit.RAD_PER_S: bounds.MAX_ANGULAR_SPEED_RAD_S,
 }
 """The physical bound of a speed in each unit (the robot's own maximum is the checks' business)."""
+SPEED_MIN: dict[SpeedUnit, float] = {
+    SpeedUnit.FRACTION: bounds.MIN_SPEED_FRACTION,
+    SpeedUnit.M_PER_S: bounds.MIN_LINEAR_SPEED_M_S,
+    SpeedUnit.RAD_PER_S: bounds.MIN_ANGULAR_SPEED_RAD_S,
+}
+"""The slowest speed in each unit: below it a motion could not finish in a working day
+(``bounds.MAX_MOTION_S``), and a speed of 5e-324 would divide by zero in a planner."""
 
 
 class Speed(_Model):
     """A speed: ``value`` in ``unit``; a fraction of the robot's maximum is in (0, 1] for the
-    checks and the planner (the model itself refuses only what no robot can mean)."""
+    checks and the planner (the model itself refuses only what no robot can mean: above
+    ``SPEED_BOUND``, or below ``SPEED_MIN``, too slow to finish in a working day)."""
 
     value: float = Field(gt=0.0)
     unit: SpeedUnit
@@ -145,6 +153,15 @@ class Speed(_Model):
             raise PydanticCustomError(
                 "out_of_bounds", "value {value} {unit} is above the speed bound of {limit} {unit}",
                 {"value": describe(self.value), "unit": self.unit.value, "limit": describe(limit)},
+            )
+        slowest = SPEED_MIN[self.unit]
+        if self.value < slowest * (1.0 - 1e-9):  # the bound itself, however its unit converted, passes
+            raise PydanticCustomError(
+                "out_of_bounds",
+                "value {value} {unit} is below the slowest speed bound of {limit} {unit} "
+                "(a motion at it could not finish within {hours} h)",
+                {"value": describe(self.value), "unit": self.unit.value, "limit": describe(slowest),
+                 "hours": describe(bounds.MAX_MOTION_S / 3600.0)},
             )
         return self
 

@@ -34,6 +34,7 @@ import numpy as np
 from shared.cells.cell import Cell, Feature
 from shared.collision.interference import InterferenceZones, PathDetour, PathRefused
 from shared.errors import InputError
+from shared.language.bounds import MAX_MOTION_S
 from shared.language.statements import (
     ALLOWED_SPEED_UNITS,
     SPEED_UNIT_TEXT,
@@ -50,6 +51,7 @@ from shared.language.statements import (
     SpeedUnit,
     Statement,
     TaskCall,
+    UntilTime,
 )
 from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
 from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArmEnd, resolve_name
@@ -158,6 +160,7 @@ class Interpreter:
             if state.unknown is not None and not may_follow(statement, state.unknown):
                 raise PlanRefused(RefusalReason.AFTER_TASK, why_not(statement, state.unknown))
             segment = self._plan(statement, state, index)
+            _check_motion_time(segment)
         except PlanRefused as exc:
             raise exc.at_index(index) from None
         new_q = segment.q_end
@@ -486,6 +489,19 @@ def _build_sample_table(segments: tuple[Segment, ...], dof: int) -> _SampleTable
         code, velocity, accel, q_start, q_end, first, last,
         np.concatenate(keys), np.concatenate(node_s), np.concatenate(node_q), np.concatenate(node_m),
     )
+
+
+def _check_motion_time(segment: Segment) -> None:
+    """Refuse a motion planned to take longer than ``MAX_MOTION_S`` (a working day): a long line
+    at the slowest speed the language allows. A motion cut short by ``UNTIL TIME`` counts until then."""
+    until = segment.until
+    end = min(segment.duration, until.seconds) if isinstance(until, UntilTime) else segment.duration
+    if not end <= MAX_MOTION_S:
+        raise PlanRefused(
+            RefusalReason.INVALID,
+            f"{segment.statement.kind} would take {end / 3600.0:.3g} h at its speed: longer than the "
+            f"{MAX_MOTION_S / 3600.0:g} h bound on one motion; give it a higher speed",
+        )
 
 
 def _detour_path(q0: np.ndarray, waypoints: list[np.ndarray], q1: np.ndarray) -> NodePath:

@@ -26,6 +26,12 @@ def net_from_json(text: str | bytes, path: str | Path = "<json>") -> PTNet:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise FileFormatError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(path, f"not UTF-8 text (byte {exc.start})") from None
+    except RecursionError:
+        raise FileFormatError(path, "not a net: its JSON nests too deep") from None
+    except ValueError:  # Python's limit on the digits of an integer (4300)
+        raise FileFormatError(path, "not a net: a number has too many digits") from None
     if not isinstance(data, dict):
         raise FileFormatError(path, f"a net is a JSON object; got {type(data).__name__}")
     compact = "initial_marking" in data or any(

@@ -19,7 +19,7 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from shared.errors import FileFormatError
-from shared.tasknet.ptnet import Arc, Place, PTNet, Transition
+from shared.tasknet.ptnet import MAX_TOKENS, Arc, Place, PTNet, Transition
 
 PNML_NS = "http://www.pnml.org/version-2009/grammar/pnml"
 PTNET_TYPE = "http://www.pnml.org/version-2009/grammar/ptnet"
@@ -194,11 +194,18 @@ def _int_attr(path, where: str, el: ET.Element | None, what: str, minimum: int) 
 
 
 def _parse_int(path, where: str, what: str, raw: str, minimum: int) -> int:
-    try:
-        value = int(raw)
-    except ValueError:
-        value = None
+    shown = raw if len(raw) <= 40 else raw[:40] + "..."
+    digits = raw.strip().removeprefix("+").lstrip("0")
+    if digits.isascii() and digits.isdigit() and len(digits) > 18:
+        value: int | None = MAX_TOKENS + 1  # beyond the bound, without converting a long digit string
+    else:
+        try:
+            value = int(raw)
+        except ValueError:
+            value = None
     if value is None or value < minimum:
         kind = "a positive integer" if minimum >= 1 else "a non-negative integer"
-        raise FileFormatError(path, f"{what} must be {kind}; got {raw!r}", field=where)
+        raise FileFormatError(path, f"{what} must be {kind}; got {shown!r}", field=where)
+    if value > MAX_TOKENS:
+        raise FileFormatError(path, f"{what} {shown} is above the bound of {MAX_TOKENS} tokens", field=where)
     return value

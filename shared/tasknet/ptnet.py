@@ -21,6 +21,11 @@ from shared.errors import InputError, UnknownNameError
 NO_CAPACITY = np.iinfo(np.int64).max
 """What the capacity vector holds for a place without a capacity (K = omega)."""
 
+MAX_TOKENS = 10**9
+"""Largest initial marking, capacity or arc weight a net may hold (and tokens a marking given by
+place may put on one). Markings are int64 arrays: sums and firings of numbers this size stay exact
+(a 10**40 would not fit one); no task model needs more than a handful."""
+
 
 class Place(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -29,9 +34,9 @@ class Place(BaseModel):
     name: str | None = None
     predicate: str | None = None
     """The condition the place stands for in a task model, e.g. ``HOLDING(PEG)``."""
-    initial: int = Field(default=0, ge=0)
+    initial: int = Field(default=0, ge=0, le=MAX_TOKENS)
     """Tokens in the initial marking M0."""
-    capacity: int | None = Field(default=None, ge=1)
+    capacity: int | None = Field(default=None, ge=1, le=MAX_TOKENS)
     """K(s); None is omega (no bound)."""
 
 
@@ -49,7 +54,7 @@ class Arc(BaseModel):
 
     source: str = Field(min_length=1)
     target: str = Field(min_length=1)
-    weight: int = Field(default=1, ge=1)
+    weight: int = Field(default=1, ge=1, le=MAX_TOKENS)
 
 
 class PTNet(BaseModel):
@@ -177,6 +182,8 @@ class PTNet(BaseModel):
                 raise UnknownNameError("place", place, self.place_index)
             if n < 0:
                 raise InputError(f"place {place!r}: a marking holds no negative tokens; got {n}")
+            if n > MAX_TOKENS or m[self.place_index[place]] + n > MAX_TOKENS:
+                raise InputError(f"place {place!r}: a marking holds at most {MAX_TOKENS} tokens per place; got {n}")
             m[self.place_index[place]] += n
         return m
 

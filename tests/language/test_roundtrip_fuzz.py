@@ -13,6 +13,8 @@ from shared.language import bounds
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program
 from shared.language.statements import (
+    SPEED_BOUND,
+    SPEED_MIN,
     Draw,
     Drive,
     Event,
@@ -108,7 +110,9 @@ angle = st.one_of(small, st.integers(-360, 360).map(math.radians), finite)
 positive = st.floats(min_value=1e-9, max_value=bounds.MAX_LINEAR_SPEED_M_S, exclude_min=False).filter(lambda v: v > 0)
 vec3 = st.tuples(angle, angle, angle)
 name = st.from_regex(r"[A-Za-z_][A-Za-z0-9_]{0,8}", fullmatch=True)
-speed = st.builds(Speed, value=positive, unit=st.sampled_from(list(SpeedUnit)))
+# any speed between the slowest (a working day's motion) and the fastest bound of its unit
+speed = st.sampled_from(list(SpeedUnit)).flatmap(
+    lambda u: st.floats(min_value=SPEED_MIN[u], max_value=SPEED_BOUND[u]).map(lambda v: Speed(value=v, unit=u)))
 until = st.one_of(st.none(), st.builds(UntilForce, newtons=positive), st.just(UntilContact()),
                   st.builds(UntilTime, seconds=positive))
 action_extra = {"speed": st.one_of(st.none(), speed), "until": until}
