@@ -153,7 +153,7 @@ class Dispatch:
         with self._ctx.lock:
             self.robot, self.loop, self.url = robot, loop, robot.url
         robot.on_report(self.on_report)
-        robot.on_telemetry(self.remote.on_telemetry)
+        robot.on_telemetry(self.remote.take_frame, gate=self.remote.gate_frame)
         robot.on_restart(self.on_robot_restart)
 
     @property

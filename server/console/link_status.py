@@ -5,10 +5,9 @@ problem for the status bar. Published on a timer (its ages grow when nothing els
 from __future__ import annotations
 
 import logging
+import statistics
 from collections.abc import Callable
 from typing import TYPE_CHECKING
-
-import numpy as np
 
 from server.console.context import ConsoleContext
 from server.console.events import LinkChanged
@@ -65,12 +64,29 @@ class LinkStatus:
             log.exception("reading the children's status failed")
             return {"children": "status unknown"}
 
+    def _round_trip(self) -> float | None:
+        """The median of the last five measured round trips (under the lock; ``statistics``
+        gives numpy's median of five floats in a microsecond, not twenty)."""
+        trips = self._dispatch.round_trips
+        return float(statistics.median(trips[-5:])) if trips else None
+
+    def telemetry_age_s(self) -> float | None:
+        """``view().telemetry_age_s`` alone (the remote arm's view needs only this): since the
+        newest frame arrived, plus the one-way delay."""
+        with self._ctx.lock:
+            rtt = self._round_trip()
+            newest = self._remote.newest()
+            if newest is None:
+                return None
+            return self._ctx.clock() - newest[1] + (rtt / 2 if rtt is not None else 0.0)
+
     def view(self) -> LinkView:
         d = self._dispatch
         with self._ctx.lock:
             robot, url = d.robot, d.url
-            rtt = float(np.median(d.round_trips[-5:])) if d.round_trips else None
-            frame, at = self._remote.telemetry, self._remote.telemetry_at
+            rtt = self._round_trip()
+            newest = self._remote.newest()
+            frame, at = newest if newest is not None else (None, None)
             ago = self._ctx.clock() - at if at is not None else None
             recovery = list(self.recovery.pending.values()) if self.recovery is not None else []
         delay = rtt / 2 if rtt is not None else None
@@ -89,7 +105,7 @@ class LinkStatus:
             recovery_pending=recovery, status=h.command, heard_ago_s=h.heard_ago_s, silence_limit_s=h.silence_limit_s,
             telemetry=h.telemetry, halted=h.halted, errors=h.errors, last_error=h.last_error, refused=h.refused,
             buffer_full=h.buffer_full, robot_session=h.session_id, robot_restarts=h.restarts, children=children,
-            problems=link_problems(h, children),
+            problems=link_problems(h, children), telemetry_frames=h.telemetry_frames,
         )
 
     def tick(self) -> None:

@@ -4,6 +4,11 @@ the virtual world the operator edits.
 * The remote arm from the newest telemetry frame (published at ``remote_event_hz``, and at once
   when the robot's state changes) and the objects where the robot reports them, or, for a robot
   that reports none, where the grasps and releases it finished left them.
+* Telemetry from a robot client comes through a gate (``gate_frame``, on the client's loop): each
+  frame becomes the newest at once (one assignment, no lock), and only the frames that matter
+  (another robot state, the publication due, or every frame while ``bus.telemetry`` has
+  listeners) go on to ``take_frame`` on the client's listeners' thread. The frames between two
+  publications cost the console their decoding and the gate, not a thread's wake each.
 * The predicted path: the statements sent and not yet final, planned from the reported arm.
 * Divergence: once the robot is at rest, the reported arm against where the program expects it
   and the reported objects against the virtual world's; beyond the thresholds, the operator is
@@ -59,8 +64,10 @@ class RemoteMirror:
         self._ctx = ctx
         self._control, self._desk, self._arm, self._dispatch = control, desk, arm, dispatch
         self.link = link  # server.console.link_status.LinkStatus, set by the session
-        self.telemetry: TelemetryFrame | None = None
-        self.telemetry_at: float | None = None
+        self._newest: tuple[TelemetryFrame, float] | None = None
+        """The newest frame and when it arrived (``ctx.clock``): one tuple, swapped whole, so a
+        reader on any thread gets a frame and its time together without the lock."""
+        self._state = None  # the robot state of the last frame taken (``_take``)
         self._emitted_at = float("-inf")
         self.objects = ObjectWorld(ctx.cell)
         s = ctx.settings
@@ -70,6 +77,22 @@ class RemoteMirror:
     def _world_T_tcp(self, q: np.ndarray) -> np.ndarray:
         return world_T_tcp(self._ctx.robot, q, self._ctx.frames)
 
+    @property
+    def telemetry(self) -> TelemetryFrame | None:
+        """The newest telemetry frame (None before the first)."""
+        newest = self._newest
+        return None if newest is None else newest[0]
+
+    @property
+    def telemetry_at(self) -> float | None:
+        """When the newest frame arrived (``ctx.clock``; None before the first)."""
+        newest = self._newest
+        return None if newest is None else newest[1]
+
+    def newest(self) -> tuple[TelemetryFrame, float] | None:
+        """The newest frame with its arrival time, read together."""
+        return self._newest
+
     # -- views ---------------------------------------------------------------------------------
     def view(self) -> RemoteArmView | None:
         """The remote arm from the newest telemetry frame, or ``None`` before the first one."""
@@ -78,7 +101,7 @@ class RemoteMirror:
             if frame is None:
                 return None
             q = np.array(frame.q, dtype=float)
-            age = self.link.view().telemetry_age_s
+            age = self.link.telemetry_age_s()
             world_T = self._world_T_tcp(q)
             return RemoteArmView(
                 q=q.tolist(), world_T_tcp=matrix_list(world_T), age_s=age,
@@ -97,14 +120,35 @@ class RemoteMirror:
 
     # -- what the robot says -------------------------------------------------------------------
     def on_telemetry(self, frame: TelemetryFrame) -> None:
-        """A telemetry frame (from the robot client's delivery thread, 50 Hz, or a replay): publish
-        the remote arm at a lower rate; check divergence when the robot's state changes."""
+        """A telemetry frame from a source without a gate (a replay, a test; any thread): it
+        becomes the newest, then is taken as ``take_frame`` takes one."""
+        self._newest = (frame, self._ctx.clock())
+        self._take(frame)
+
+    def gate_frame(self, frame: TelemetryFrame) -> bool:
+        """The robot client's gate (``RobotClient.on_telemetry``), on its loop as each frame
+        arrives, so it never waits: ``frame`` becomes the newest, and the answer says whether
+        ``take_frame`` must see it: a frame with another robot state than the one before (checked
+        at once), one that arrives when the remote arm's publication is due, and every frame while
+        anyone listens to ``bus.telemetry`` (a recorder writes each)."""
+        now = self._ctx.clock()
+        old = self._newest
+        self._newest = (frame, now)
+        return (old is None or old[0].state != frame.state or len(self._ctx.bus.telemetry) > 0
+                or now - self._emitted_at >= 1.0 / self._ctx.settings.remote_event_hz)
+
+    def take_frame(self, frame: TelemetryFrame) -> None:
+        """A frame its gate let through (the robot client's listeners' thread)."""
+        self._take(frame)
+
+    def _take(self, frame: TelemetryFrame) -> None:
+        """Hand ``frame`` to ``bus.telemetry``; publish the remote arm (the newest frame) at
+        ``remote_event_hz``, and at once with a divergence check when the robot's state changes."""
         now = self._ctx.clock()
         self._ctx.bus.telemetry.call((frame,))
         with self._ctx.lock:
-            old = self.telemetry
-            self.telemetry, self.telemetry_at = frame, now
-            changed_state = old is None or old.state != frame.state
+            changed_state = self._state is None or self._state != frame.state
+            self._state = frame.state
             due = now - self._emitted_at >= 1.0 / self._ctx.settings.remote_event_hz
             if due or changed_state:
                 self._emitted_at = now

@@ -35,7 +35,11 @@ class RobotLink(Protocol):
 
     def on_report(self, listener: Callable[[StatusReport], None]) -> None: ...
 
-    def on_telemetry(self, listener: Callable[[TelemetryFrame], None]) -> None: ...
+    def on_telemetry(self, listener: Callable[[TelemetryFrame], None],
+                     gate: Callable[[TelemetryFrame], bool] | None = None) -> None:
+        """``listener(frame)`` on the delivery thread for each frame ``gate(frame)`` lets
+        through (every frame without a gate). The gate runs where the frame arrives, before it
+        is queued: it must not wait (see ``RobotClient.on_telemetry``)."""
 
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None: ...
 

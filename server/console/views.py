@@ -206,6 +206,9 @@ class LinkView(_View):
     heard_ago_s: float | None = Field(None, description="since anything last arrived on the command channel")
     silence_limit_s: float | None = Field(None, description="silence beyond the expected arrival that counts as silent")
     telemetry: str = Field("none", description="none (no frame yet), live or stale (no frame past the silence limit)")
+    telemetry_frames: int | None = Field(
+        None, description="telemetry frames the console has received from the robot since it started (None: no robot)"
+    )
     halted: str | None = Field(None, description="why the robot stopped by itself, until a resume is acknowledged")
     errors: int = Field(0, description="errors caught while handling the robot's messages (the channels carried on)")
     last_error: str | None = None

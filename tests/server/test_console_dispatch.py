@@ -98,8 +98,10 @@ class FakeRobot:
     def on_report(self, listener: Callable[[StatusReport], None]) -> None:
         self._reports.append(listener)
 
-    def on_telemetry(self, listener: Callable[[TelemetryFrame], None]) -> None:
-        self._frames.append(listener)
+    def on_telemetry(self, listener: Callable[[TelemetryFrame], None],
+                     gate: Callable[[TelemetryFrame], bool] | None = None) -> None:
+        # as the client does: the gate where the frame arrives, the listener for what it lets through
+        self._frames.append(listener if gate is None else lambda frame: gate(frame) and listener(frame))
 
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None:
         self._restarts.append(listener)
@@ -401,11 +403,11 @@ def test_the_link_view_reports_the_robots_health(session, robot, clock) -> None:
     assert view.robot_session == "robot-s7" and view.robot_restarts == 1 and view.reconnects == 2
     assert view.problems == [] and view.robot_state is None  # no telemetry yet
     # a live telemetry frame: the robot's state shows, with its age on the console's clock
-    robot.set_health(telemetry="live", telemetry_ago_s=0.02)
+    robot.set_health(telemetry="live", telemetry_ago_s=0.02, telemetry_frames=7)
     robot.frame(session.cell.q_home, RobotState.RUNNING, statement=1)
     clock.advance(0.25)
     view = session.link.view()
-    assert view.robot_state == "running" and view.telemetry == "live"
+    assert view.robot_state == "running" and view.telemetry == "live" and view.telemetry_frames == 7
     assert view.telemetry_received_ago_s == pytest.approx(0.25)
     # stale telemetry never shows an old state
     robot.set_health(telemetry="stale", telemetry_ago_s=2.5)

@@ -38,6 +38,17 @@ def test_round_trip():
     assert decode_frame(data) == FRAME
 
 
+def test_one_frame_decodes_to_plain_python_numbers_as_the_array_view_reads_them():
+    """``decode_frame`` (``struct``) and ``decode_frames`` (numpy) read the same bytes alike."""
+    data = encode_frame(FRAME)
+    frame, rec = decode_frame(data), decode_frames(data)[0]
+    assert type(frame.time) is float and type(frame.frame) is int and type(frame.statement) is int
+    assert all(type(v) is float for v in (*frame.q, *frame.position, *frame.rpy, frame.gripper, *frame.wrench))
+    assert frame.state is RobotState(int(rec["state"])) and frame.mode is ControlMode(int(rec["mode"]))
+    assert frame.q == tuple(float(v) for v in rec["q"][: int(rec["dof"])]) and frame.wrench == tuple(rec["wrench"].tolist())
+    assert (frame.time, frame.frame, frame.gripper) == (float(rec["time"]), int(rec["frame"]), float(rec["gripper"]))
+
+
 def test_fewer_joints_are_padded_and_restored():
     rover = TelemetryFrame(time=0.0, frame=0, state=RobotState.IDLE, mode=ControlMode.POSITION, statement=0,
                            q=(0.1, 0.2, 0.3), position=(0, 0, 0), rpy=(0, 0, 0))
