@@ -9,6 +9,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from console_page import ConsolePage, wait_for
 from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 
@@ -36,8 +37,17 @@ def test_a_grasp_trial_started_on_the_submit_tab_shows_its_table_and_plots(ui: C
     ui.tab("Submit")
     rows = {round(ui.page.get_by_role("tab", name=n).bounding_box()["y"]) for n in ("Drive", "Program", "Preview", "Submit", "Task")}
     assert len(rows) == 1, f"the tab strip wrapped: tabs at y = {sorted(rows)}"
-    ui.press(ui.page.get_by_text("Trials (virtual time)", exact=True))
-    ui.page.locator('[data-trial-state="none"]').wait_for(state="visible", timeout=15_000)
+    folder = ui.page.get_by_text("Trials (virtual time)", exact=True)
+    body = ui.page.locator('[data-trial-state="none"]')
+    for _ in range(3):  # under load a press on the folder's title can land before the tab is laid out
+        folder.scroll_into_view_if_needed()
+        ui.press(folder)
+        try:
+            body.wait_for(state="visible", timeout=10_000)
+            break
+        except PlaywrightTimeout:
+            continue
+    body.wait_for(state="visible", timeout=15_000)
     ui.page.locator('[data-trial-state="none"]').scroll_into_view_if_needed()  # the folder is at the tab's foot
     time.sleep(0.5)  # the folder has slid open
     ui.choose("Trial kind", "grasp")
