@@ -16,7 +16,6 @@ done; the fraction is the phases done plus the running phase's part of its share
 from __future__ import annotations
 
 import itertools
-import threading
 from collections.abc import Callable, Sequence
 
 from server.console.bus import EventBus
@@ -49,7 +48,6 @@ class Work:
         self._done = 0
         self._started = clock()
         self._last: float | None = None  # when progress was last published
-        self._lock = threading.Lock()
 
     @property
     def fraction(self) -> float:
@@ -59,14 +57,13 @@ class Work:
     def phase(self, name: str, items: int) -> Callable[[int], None]:
         """Enter phase ``name`` (one of the phases given, in order) of ``items`` items; the
         function returned reports how many are done."""
-        with self._lock:
-            names = [n for n, _ in self._phases]
-            if name not in names[self._index:]:
-                raise ValueError(f"phase {name!r} is not one of {names[self._index:]}")
-            while self._phases[self._index][0] != name:
-                self._done_share += self._phases[self._index][1]
-                self._index += 1
-            self._items = max(1, int(items))
+        names = [n for n, _ in self._phases]
+        if name not in names[self._index:]:
+            raise ValueError(f"phase {name!r} is not one of {names[self._index:]}")
+        while self._phases[self._index][0] != name:
+            self._done_share += self._phases[self._index][1]
+            self._index += 1
+        self._items = max(1, int(items))
         self.advance(0)
         return self.advance
 
@@ -80,12 +77,7 @@ class Work:
         if now - self._started >= SHOW_AFTER_S and (self._last is None or now - self._last >= EVERY_S):
             self._publish(now)
 
-    def _publish(self, now: float | None = None, finished: bool = False) -> None:
-        now = self._clock() if now is None else now
-        if not finished and now - self._started < SHOW_AFTER_S:
-            return
-        if finished and self._last is None:
-            return  # never shown: nothing to close
+    def _publish(self, now: float, finished: bool = False) -> None:
         self._last = now
         self._bus.emit([WorkProgress(
             id=self.id, work=self.kind, what=self.what, phase=self._phases[self._index][0],
@@ -93,7 +85,8 @@ class Work:
             finished=finished)])
 
     def finish(self) -> None:
-        self._publish(finished=True)
+        if self._last is not None:  # never shown: nothing to close
+            self._publish(self._clock(), finished=True)
 
     def __enter__(self) -> "Work":
         return self
