@@ -109,8 +109,16 @@ def test_back_away_after_a_contact_fault(up: RunningConsole) -> None:
     wait_for(lambda: call(up, "GET", "/api/remote")["state"] == "fault", 30, what="the contact fault")
     sent = call(up, "GET", "/api/sent")["items"]
     assert sent[-2]["status"] == "failed" and sent[-1]["status"] not in ("done", "failed")
-    fault_xyz = call(up, "GET", "/api/remote")["world_T_tcp"]
-    fault_p = [row[3] for row in fault_xyz[:3]]
+    # the physical arm brakes to a stop after the fault: read where it rests, as back away will
+    last: list = []
+
+    def resting() -> list | None:
+        p = [row[3] for row in call(up, "GET", "/api/remote")["world_T_tcp"][:3]]
+        steady = bool(last) and math.dist(p, last[-1]) < 1e-7
+        last.append(p)
+        return p if steady else None
+
+    fault_p = wait_for(resting, 30, what="the arm at rest after the fault")
 
     before = len(sent)
     call(up, "POST", "/api/robot/back_away")
