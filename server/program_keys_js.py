@@ -9,9 +9,11 @@ from the session's events like any other change:
 * a click on a line selects it (``POST select {index}``); a shift-click extends the selection
   from its anchor to that line (``extend: true``);
 * while the list is the last thing clicked, or the mouse is over it: ArrowUp / ArrowDown move the
-  selection (``POST move {by, extend}``, shift extends), Delete or Backspace deletes the selected
+  selection (``POST move {by, extend}``, shift extends; at either end it stays), Alt+ArrowUp /
+  Alt+ArrowDown move the selected statements (``POST move-statements {by}``), Delete or Backspace deletes the selected
   range (``POST delete``), Ctrl+Z undoes (``POST undo``), Ctrl+Shift+Z and Ctrl+Y redo
-  (``POST redo``; Cmd on a Mac). Keys typed into a text or number box are never taken.
+  (``POST redo``; Cmd on a Mac). Keys typed into a text or number box are never taken; a click on
+  a line takes the focus from a box clicked before, so the keys after it go to the list.
 
 Keys the list takes are stopped in the capture phase at ``window``, before viser's own handlers
 (the camera's arrow keys) see them. Calls go one at a time, in order. A refused call needs nothing here: the session shows the
@@ -38,14 +40,18 @@ PROGRAM_KEYS_JS = """(() => {
       method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body || {}),
     })).catch((err) => console.warn("program list: " + path + " failed", err));
   };
-  const typing = (el) => el instanceof HTMLElement &&
-    (el.isContentEditable || el.matches("input, textarea, select, [role='textbox'], [role='combobox']"));
+  const typing = (el) => el instanceof HTMLElement && (el.isContentEditable ||
+    el.matches("input:not([type='checkbox']):not([type='radio']):not([type='button']), textarea, select, [role='textbox'], [role='combobox']"));
   window.addEventListener("mousedown", (e) => {
     clicked = inList(e.target);
     if (!clicked || e.button !== 0) return;
     const line = e.target.closest("[data-stmt-index]");
     if (line === null) return;
     e.preventDefault();  // a shift-click selects lines, not the page's text
+    // preventing the default also keeps the focus where it was: a text box or a tick box clicked
+    // before would keep the keys meant for the list, so it lets go of them here
+    const focused = document.activeElement;
+    if (focused instanceof HTMLElement && focused !== document.body && !inList(focused)) focused.blur();
     call("/select", { index: Number(line.dataset.stmtIndex), extend: e.shiftKey });
   }, true);
   window.addEventListener("mouseover", (e) => { hovered = inList(e.target); }, true);
@@ -56,6 +62,8 @@ PROGRAM_KEYS_JS = """(() => {
     let path = null, body = null;
     if (!ctrl && !e.altKey && (key === "ArrowDown" || key === "ArrowUp")) {
       path = "/move"; body = { by: key === "ArrowDown" ? 1 : -1, extend: e.shiftKey };
+    } else if (!ctrl && e.altKey && !e.shiftKey && (key === "ArrowDown" || key === "ArrowUp")) {
+      path = "/move-statements"; body = { by: key === "ArrowDown" ? 1 : -1 };
     } else if (!ctrl && !e.altKey && (key === "Delete" || key === "Backspace")) {
       path = "/delete";
     } else if (ctrl && !e.altKey && key === "z") {

@@ -1,5 +1,6 @@
 """The program as an HTML list: one line per entry with its number, text and planned duration,
-the selected range highlighted, the cursor marked, and a refusal drawn on the line it concerns.
+the selected range highlighted, the cursor marked, and a refusal drawn on the line it concerns
+(its sentence in plain words; the rule's id only in the tooltip and ``data-rule``).
 
 Only drawing: each line carries ``data-stmt-index`` and the list ``data-program-list`` and
 ``data-program-api``, which the page's script (``server.program_keys_js``) turns into calls on the
@@ -15,7 +16,8 @@ from server.console import ProgramView, StatementView
 from server.program_keys_js import PROGRAM_API
 
 MARK = "▶"
-HINT = "Click a line to select it, shift-click for a range; ↑ ↓ move (shift extends), Delete, Ctrl+Z / Ctrl+Shift+Z"
+HINT = ("Click a line to select it, shift-click for a range; ↑ ↓ move (shift extends), Alt+↑ ↓ move the statements, "
+        "Delete, Ctrl+Z / Ctrl+Shift+Z")
 
 _LIST_STYLE = "user-select:none;cursor:default;font-size:0.85em;line-height:1.5;outline:none"
 _LINE_STYLE = "display:flex;gap:0.4em;align-items:baseline;padding:1px 4px;border-left:3px solid transparent;cursor:pointer"
@@ -53,10 +55,14 @@ def _line(entry: StatementView, view: ProgramView, selected: bool, refused: bool
 
 
 def _refusal(view: ProgramView) -> str:
+    """The refusal's sentence in plain words; its rule id only in the tooltip and ``data-rule``."""
     refusal = view.refusal
     assert refusal is not None
     where = f' data-refusal-for="{refusal.index}"' if refusal.index is not None else ' data-refusal-for="program"'
-    return f'<div{where} style="{_REFUSAL_STYLE}">✖ rule {escape(refusal.rule)}: {escape(refusal.message)}</div>'
+    rule = escape(refusal.rule, quote=True)
+    message = refusal.message[:1].upper() + refusal.message[1:]
+    return (f'<div{where} data-rule="{rule}" title="rule {rule}" style="{_REFUSAL_STYLE}">'
+            f"✖ {escape(message)}</div>")
 
 
 def program_html(view: ProgramView) -> str:
@@ -76,6 +82,7 @@ def program_html(view: ProgramView) -> str:
     known = [e.duration_s for e in view.entries if e.duration_s is not None]
     total = f"; planned {sum(known):.1f} s" if known else ""
     footer = f"Starts from: {_START.get(view.start_source, view.start_source)}{total}"
+    footer += " · strict editing (thesis rules)" if view.strict_editing else " · free editing"
     last_real = min(last, view.empty_index - 1)
     if first < last_real:
         footer += f" · statements {first + 1}-{last_real + 1} selected"

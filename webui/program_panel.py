@@ -1,9 +1,10 @@
 """The programming panel (thesis 4.3.6): the program as a list with its selection, automatic
-generation on/off, a statement added or edited by hand, delete, undo/redo, save and load.
+generation on/off, free or strict (thesis) editing, a statement added or edited by hand, delete,
+undo/redo, save and load.
 
 The panel decides nothing: each control calls the session, whose editor applies the rules; a
-refusal comes back as a sentence naming its rule, shown in the status bar and under the line it
-concerns. The list is an HTML block (``webui.program_list``; viser has no list widget) whose
+refusal comes back as a sentence, shown in the status bar and under the line it concerns (the
+rule's id only in that line's tooltip). The list is an HTML block (``webui.program_list``; viser has no list widget) whose
 lines the page's script turns into clicks and keys on the program's API (click, shift-click,
 arrows, Delete, Ctrl+Z); a dropdown selects an entry too.
 """
@@ -21,6 +22,9 @@ from webui.program_list import MARK, program_html
 log = logging.getLogger(__name__)
 
 __all__ = ["MARK", "ProgramPanel", "entry_label"]
+
+FREE_HINT = "edit the selected statement (any kind, anywhere), then Replace; the rest is re-planned"
+STRICT_HINT = "edit WITH / UNTIL (any action) or the parameters (last action only), then Replace"
 
 
 def entry_label(entry: StatementView) -> str:
@@ -40,15 +44,19 @@ class ProgramPanel:
         self.auto = gui.add_checkbox("Automatic generation", initial_value=True,
                                      hint="turn driving motion into statements as you drive")
         self.auto.on_update(self._on_auto)
+        self.strict = gui.add_checkbox(
+            "Strict editing (thesis rules)", initial_value=False,
+            hint="off (the default): delete, replace, move or insert any statement, the rest re-planned and checked; "
+                 "on: the thesis's rules (§4.3.6), where only the last motion may change",
+        )
+        self.strict.on_update(self._on_strict)
         self.listing = gui.add_html("")
         self.selector = gui.add_dropdown("Selected", ["1: (empty)"], initial_value="1: (empty)")
         self.selector.on_update(self._on_select)
         self.new_text = gui.add_text("New statement", "", hint="e.g. DRAW TO (0, -80, 160) mm IN WORK")
         self.insert = gui.add_button("Insert before selection", icon=viser.Icon.ROW_INSERT_TOP)
         self.insert.on_click(lambda _: self.actions.run("insert", lambda: self.session.program.insert(self.new_text.value)))
-        self.edit_text = gui.add_text(
-            "Selected text", "", hint="edit WITH / UNTIL (any action) or the parameters (last action only), then Replace"
-        )
+        self.edit_text = gui.add_text("Selected text", "", hint=FREE_HINT)
         self.edits = gui.add_button_group("Edit", ("Replace", "Clear WITH/UNTIL", "Delete"))
         self.edits.on_click(self._on_edit)
         self.history = gui.add_button_group("History", ("Undo", "Redo"))
@@ -68,6 +76,12 @@ class ProgramPanel:
             return
         on = bool(self.auto.value)
         self.actions.run("automatic generation", lambda: self.session.program.set_auto_generate(on))
+
+    def _on_strict(self, event: viser.GuiEvent) -> None:
+        if self._setting or event.client is None:
+            return
+        on = bool(self.strict.value)
+        self.actions.run("editing mode", lambda: self.session.program.set_strict_editing(on))
 
     def _on_select(self, event: viser.GuiEvent) -> None:
         if self._setting or event.client is None:
@@ -122,6 +136,9 @@ class ProgramPanel:
                 self.selector.value = selected
             if self.auto.value != view.auto_generate:
                 self.auto.value = view.auto_generate
+            if self.strict.value != view.strict_editing:
+                self.strict.value = view.strict_editing
+                self.edit_text.hint = STRICT_HINT if view.strict_editing else FREE_HINT
             self.edit_text.value = "" if entry.kind == "EMPTY" else entry.text
         finally:
             self._setting = False

@@ -1,7 +1,9 @@
 """The programming panel (§4.3.6): select (one entry, a range, a move of the cursor), insert,
-delete (the selection or a range), modify, conditions, undo/redo, automatic generation, load and
-save program files. The page's program list calls these from clicks and keys
-(``server/program_keys_js.py``)."""
+delete (the selection or a range), modify, conditions, move statements, undo/redo, the editing
+mode (free, the default, or the thesis's strict rules), automatic generation, load and save
+program files. The page's program list calls these from clicks and keys
+(``server/program_keys_js.py``). A refused edit is a 409 whose ``rule`` is the stable id and whose
+``detail`` the sentence for the operator."""
 
 from __future__ import annotations
 
@@ -35,6 +37,14 @@ class RangeIn(ApiIn):
 class MoveIn(ApiIn):
     by: Literal[-1, 1] = Field(description="1: the next entry (down), -1: the previous one (up)")
     extend: bool = Field(False, description="keep the anchor: extend the range (shift+arrow)")
+
+
+class MoveStatementsIn(ApiIn):
+    by: int = Field(ge=-MAX_COUNT, le=MAX_COUNT, description="places to move the selected statements: negative up, positive down")
+
+
+class EditingIn(ApiIn):
+    strict: bool = Field(description="true: the thesis's editing rules (§4.3.6); false: free editing (the default)")
 
 
 class StatementIn(ApiIn):
@@ -91,9 +101,22 @@ def move(body: MoveIn, session: SessionDep, client: ClientDep) -> ProgramView:
     return session.program.move_selection(body.by, extend=body.extend, client=client)
 
 
+@router.post("/move-statements", response_model=ProgramView)
+def move_statements(body: MoveStatementsIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Move the selected statements (Alt+arrow): one undo step; free editing re-plans the rest,
+    strict editing moves only parameter statements and tasks that keep the arm still."""
+    return session.program.move_statements(body.by, client=client)
+
+
+@router.put("/editing", response_model=ProgramView)
+def editing(body: EditingIn, session: SessionDep, client: ClientDep) -> ProgramView:
+    """Free editing (the default) or the thesis's strict editing rules; not an edit, not undone."""
+    return session.program.set_strict_editing(body.strict, client=client)
+
+
 @router.post("/insert", response_model=ProgramView)
 def insert(body: StatementIn, session: SessionDep, client: ClientDep) -> ProgramView:
-    """Insert before the selection; 409 names the §4.3.6 rule that refuses it."""
+    """Insert before the selection; 409 names the rule that refuses it."""
     return session.program.insert(body.resolve(), client=client)
 
 

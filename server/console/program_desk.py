@@ -37,7 +37,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from server.console.console_lines import ConsoleLines
 from server.console.context import ConsoleContext
+from server.console.edit_check import rest_breaks
 from server.console.enums import Regime
 from server.console.errors import ConflictError, ConsoleLineAdded, RefusedByRule
 from server.console.events import Notice, ProgramChanged, SessionEvent
@@ -53,7 +55,7 @@ from server.console.views import (
     VirtualState,
 )
 from shared.errors import InputError, TeleprogError
-from shared.language.formatter import format_program, format_statement
+from shared.language.formatter import format_program
 from shared.language.parser import parse_statement
 from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
 from shared.motion.prefix_planner import PrefixPlanner
@@ -67,17 +69,6 @@ if TYPE_CHECKING:
     from server.console.previewer import Previewer
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class ConsoleLine:
-    """A line the console put into the program: the statement itself (compared by identity, so an
-    equal line the operator typed is the operator's) and why."""
-
-    statement: Statement
-    reason: str
-    regime: Regime  # the regime whose need it was
-
 
 
 @dataclass
@@ -99,7 +90,7 @@ def _copy_editor(editor: Editor) -> Editor:
     return trial
 
 
-class ProgramDesk:
+class ProgramDesk(ConsoleLines):
     """Editor, generator, files and the program's start."""
 
     def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes) -> None:
@@ -107,7 +98,7 @@ class ProgramDesk:
         self._control, self._modes = control, modes
         self.preview: Previewer | None = None  # set by the session
         self.dispatch: Dispatch | None = None  # set by the session
-        self._editor = Editor()
+        self._editor = Editor(strict=ctx.settings.strict_editing)
         self._auto = bool(ctx.settings.auto_generate)
         cell = ctx.cell
         self._generator = ProgramGenerator(ctx.settings.generator, world_T_base=cell.world_T_base, world_T_work=cell.frame("work"))
@@ -118,8 +109,7 @@ class ProgramDesk:
         whether undoing the editor's last step takes exactly that statement out (it was inserted)."""
         self.start = ProgramStart(cell.q_home.copy())
         self._confirmed: tuple[int, int, tuple] | None = None
-        self._console_lines: list[ConsoleLine] = []  # added by the console, not sent yet
-        self._declined: list[ConsoleLine] = []  # console lines the operator took out
+        ConsoleLines.__init__(self)
         self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
         self._durations: tuple[tuple, list[float | None]] | None = None  # (key, durations)
         self._planner: tuple[bytes, PrefixPlanner] | None = None  # (start joints, its planner)
@@ -143,7 +133,7 @@ class ProgramDesk:
                 empty_index=st.empty_index, preview=st.preview,
                 can_undo=e.can_undo, can_redo=e.can_redo, undo_label=e.undo_label, redo_label=e.redo_label,
                 auto_generate=self._auto, start_q=self.start.q.tolist(), start_source=self.start.source,
-                confirmed=self.confirmed_range(),
+                confirmed=self.confirmed_range(), strict_editing=e.strict,
             )
 
     def durations(self) -> list[float | None]:
@@ -217,26 +207,57 @@ class ProgramDesk:
         return self._edit(lambda e: e.select_range(first, last), client)
 
     def move_selection(self, by: int, *, extend: bool = False, client: Caller | str | None = None) -> ProgramView:
-        """Move the cursor one entry down (``by=1``) or up (``-1``); ``extend`` keeps the anchor (shift+arrow)."""
+        """Move the cursor one entry down (``by=1``) or up (``-1``); ``extend`` keeps the anchor
+        (shift+arrow). At either end of the program it stays where it is: an arrow key there is
+        harmless, not an error."""
         if by not in (-1, 1):
             raise InputError(f"the selection moves by 1 or -1, not {by}")
-        return self._edit(lambda e: e.select_next(extend=extend) if by > 0 else e.select_previous(extend=extend), client)
+
+        def step(e: Editor) -> object:
+            cursor = e.state.selected_index + by
+            if not 0 <= cursor <= e.state.empty_index:
+                return e.state
+            return e.select_next(extend=extend) if by > 0 else e.select_previous(extend=extend)
+
+        return self._edit(step, client)
+
+    def move_statements(self, by: int, *, client: Caller | str | None = None) -> ProgramView:
+        """Move the selected statements ``by`` places (negative: up), one undo step; the rest
+        re-planned and checked (free editing). A move past either end leaves them where they are."""
+        def move(e: Editor) -> object:
+            first, last = e.state.selected_range
+            stop = min(last, e.state.empty_index - 1)
+            if first <= stop and not 0 <= first + by <= stop + by < e.state.empty_index:
+                return e.state  # Alt+arrow at the top or the bottom: nothing to do
+            return e.move_statements(by)
+
+        return self._edit(move, client, replan=True)
+
+    def set_strict_editing(self, on: bool, *, client: Caller | str | None = None) -> ProgramView:
+        """The thesis's editing rules (§4.3.6) on, or free editing (the default); not an edit."""
+        def switch(e: Editor) -> object:
+            e.strict = bool(on)
+            return e.state
+
+        view = self._edit(switch, client)
+        log.info("program editing: %s", "strict (thesis §4.3.6)" if on else "free")
+        return view
 
     def insert(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
         """Insert a statement (a model, or its text form) before the selection."""
         self._control.check(client)  # before any work on the caller's input
         st = self._statement(statement)
-        return self._edit(lambda e: e.insert(st), client)
+        return self._edit(lambda e: e.insert(st), client, replan=True)
 
     def delete(self, first: int | None = None, last: int | None = None, *, client: Caller | str | None = None) -> ProgramView:
         """Delete the selected range, or entries ``first..last`` (0-based, both included): one undo step."""
-        return self._edit(lambda e: e.delete(first, last), client)
+        return self._edit(lambda e: e.delete(first, last), client, replan=True)
 
     def modify(self, statement: Statement | str, *, client: Caller | str | None = None) -> ProgramView:
-        """Replace the selected statement by one of the same kind (§4.3.6 rules)."""
+        """Replace the selected statement (strict editing: by one of the same kind, §4.3.6)."""
         self._control.check(client)
         st = self._statement(statement)
-        return self._edit(lambda e: e.modify(st), client)
+        return self._edit(lambda e: e.modify(st), client, replan=True)
 
     def modify_conditions(self, *, speed: Speed | None | object = KEEP, until: Until | None | object = KEEP,
                           client: Caller | str | None = None) -> ProgramView:
@@ -263,7 +284,7 @@ class ProgramDesk:
             with self._ctx.lock:
                 self._control.check(client)
                 self.check_not_previewing("load a program")
-                self._editor = Editor(read.state)
+                self._editor.load(read.state, f"load {name}")  # undo brings back the program it replaced
                 self._confirmed = None
                 self._console_lines.clear()
                 self._declined.clear()
@@ -300,7 +321,10 @@ class ProgramDesk:
         if busy is not None:
             raise ConflictError(f"cannot {what} while statements {busy[0] + 1}..{busy[1]} are being previewed; only selection is allowed")
 
-    def _edit(self, op: Callable[[Editor], object], client: Caller | str | None) -> ProgramView:
+    def _edit(self, op: Callable[[Editor], object], client: Caller | str | None, *, replan: bool = False) -> ProgramView:
+        """Apply ``op`` to a copy of the editor and keep it when it succeeds; ``replan``: in free
+        editing, re-plan the statements after the edit and refuse it where one of them could no
+        longer run (``server.console.edit_check``)."""
         with self._ctx.lock:
             self._control.check(client)
             before, shown = self._editor, self._refusal
@@ -308,6 +332,9 @@ class ProgramDesk:
             try:
                 result = op(trial)
                 refusal = result if isinstance(result, Refusal) else None
+                if refusal is None and replan and not trial.strict:
+                    refusal = rest_breaks(self, before, trial)
+                    trial = before if refusal is not None else trial
                 self._editor = trial
                 self._refusal = None if refusal is None else self._refusal_view(refusal)
                 view = self.view()
@@ -341,56 +368,6 @@ class ProgramDesk:
     @property
     def editor(self) -> Editor:
         return self._editor
-
-    # -- lines the console adds (under the lock) -------------------------------------------------
-    def _added_fields(self, statement: Statement) -> dict:
-        line = next((c for c in self._console_lines if c.statement is statement), None)
-        return {} if line is None else {"added_by": "console", "added_reason": line.reason}
-
-    def _note_removed(self) -> None:
-        """Console lines no longer in the program were taken out by the operator (sent ones are
-        dropped by :meth:`lines_sent` first): they are declined."""
-        present = self._editor.state.statements
-        for line in list(self._console_lines):
-            if not any(s is line.statement for s in present):
-                self._console_lines.remove(line)
-                self._declined.append(line)
-
-    def declined(self, statement: Statement, regime: Regime) -> bool:
-        """Whether the operator took out a console line equal to ``statement`` that the console
-        added for ``regime`` (:meth:`forget_declined` clears that when the robot's mode changes)."""
-        self._note_removed()
-        return any(d.statement == statement and d.regime is regime for d in self._declined)
-
-    def forget_declined(self) -> None:
-        self._declined.clear()
-
-    def add_console_line(self, index: int, statement: Statement, reason: str, regime: Regime) -> int:
-        """Insert ``statement`` before program index ``index`` as a line added by the console (an
-        undoable edit, the selection kept on its statement); returns its line number (from 1).
-
-        Only parameter statements are added, which change no path: a confirmed preview whose
-        range the line joins at its start or inside stays confirmed, grown by the line."""
-        self._note_removed()
-        editor = self._editor
-        keep = editor.state.selected_statement
-        for result in (editor.select(index), editor.insert(statement)):
-            if isinstance(result, Refusal):
-                raise RefusedByRule(result)
-        state = editor.state
-        editor.select(next((i for i, s in enumerate(state.entries) if s is keep), state.empty_index))
-        self._console_lines.append(ConsoleLine(statement, reason, regime))
-        c = self._confirmed
-        if c is not None and c[0] <= index < c[1] and tuple(state.statements[c[0]:c[1] + 1]) == (
-            *c[2][: index - c[0]], statement, *c[2][index - c[0]:]
-        ):
-            self._confirmed = (c[0], c[1] + 1, tuple(state.statements[c[0]:c[1] + 1]))
-        log.info("console added line %d: %s (%s)", index + 1, format_statement(statement), reason)
-        return index + 1
-
-    def lines_sent(self, statements: list[Statement]) -> None:
-        """These statements left the program for the robot: they are no longer console lines."""
-        self._console_lines = [c for c in self._console_lines if not any(c.statement is s for s in statements)]
 
     # -- generation ----------------------------------------------------------------------------
     def sample_stroke(self, before: VirtualState, after: VirtualState, mode: JogMode, frame: str | None = None) -> list[Generated]:

@@ -133,6 +133,9 @@ class ProgramView(_View):
     confirmed: tuple[int, int] | None = Field(
         None, description="range last previewed to its end with no warning (quasi regime's confirm)"
     )
+    strict_editing: bool = Field(
+        False, description="the thesis's editing rules (§4.3.6); false: free editing, any statement anywhere (the default)"
+    )
 
 
 class PreviewWarning(_View):
@@ -178,6 +181,7 @@ class SentView(_View):
     finished_at: float | None = None
     run_s: float | None = Field(None, description="running -> final, on the console's clock")
     robot_run_s: float | None = Field(None, description="running -> final, on the robot's clock (its reports' robot_time)")
+    before: bool = Field(False, description="sent before this console started: the robot listed it when this console connected")
 
 
 class SentListView(_View):
@@ -187,7 +191,8 @@ class SentListView(_View):
 
 class LinkView(_View):
     configured: bool = Field(description="whether the console has a robot URL at all")
-    url: str | None = None
+    url: str | None = Field(None, description="the robot's (or link's) address: only to the holder of control, on GET /api/link")
+    door: str | None = Field(None, description="why the robot refuses this console's connections (its credential), while it does")
     connected: bool = False
     delay_s: float | None = Field(None, description="measured one-way delay (half a round trip)")
     round_trip_s: float | None = None

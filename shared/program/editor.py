@@ -15,17 +15,21 @@ statements and the empty one sits at index ``len(statements)``. ``entries`` show
 the way §4.3.6 describes it, empty statement included. Indices in the API are 0-based; the
 sentences of refusals number statements from 1, as the operator sees them.
 
-"Just before the trailing empty statement" is read literally, as in the thesis: an action can be
-deleted, or have its own parameters changed, only when no statement at all (not even a SPEED)
-stands between it and the empty statement. This is what keeps continuity without the editor
-knowing any robot state, and it matches where actions and task calls may be inserted.
+Two modes, chosen per editor (``Editor(strict=...)``, switchable at any time, not an edit):
+
+* *free* (the default, ``shared.program.free_rules``): any statement or range may be deleted,
+  replaced (by a statement of any kind), moved or inserted anywhere; every action names only its
+  absolute target, so the statement after an edit simply starts where the one before it now ends.
+  An edit is refused only when its result cannot run (a motion after a task whose end pose is
+  unknown, a later task call's gripper state broken; the console adds the re-planned path);
+* *strict* (``shared.program.strict_rules``): the rules of thesis §4.3.6 as the thesis states
+  them, which keep continuity without knowing any robot state by letting only the last motion
+  change.
 
 Selection is a range: ``selected`` is the cursor (where insert and modify act, as in §4.3.6) and
 ``anchor``, when set, the other end of a range (a shift-click or shift-arrow in the page). A range
-delete generalises the single rule: the range may hold actions only when nothing but the empty
-statement follows it, so what is left keeps action continuity; a range of parameter statements
-(and task calls) may go anywhere. A range delete is one edit, one undo step. Every refusal names
-the statement it concerns (``Refusal.index``) where it has one, so the page shows it on its line.
+delete or move is one edit, one undo step. Every refusal names the statement it concerns
+(``Refusal.index``) where it has one, so the page shows it on its line.
 
 The order in which an operation's rules are tested (and so which rule a refusal names when
 several apply) is: preview lock, then what the selected statement is, then what the new
@@ -40,9 +44,11 @@ from dataclasses import dataclass
 from typing import Final
 
 from shared.errors import InputError
-from shared.language.statements import Speed, Statement, Until, is_action, is_parameter, is_task
-from shared.language.task_rule import UnknownPose, may_follow, moves_arm, pose_after, why_not
-from shared.program.rules import Refusal, Rule, program_violations
+from shared.language.statements import Speed, Statement, Until, is_action, is_task
+from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
+from shared.program.free_rules import free_edit_refusal
+from shared.program.rules import Refusal, Rule, describe, is_real, program_violations
+from shared.program.strict_rules import strict_delete, strict_insert, strict_modify, strict_move
 
 log = logging.getLogger(__name__)
 
@@ -89,19 +95,6 @@ class _Keep:
 KEEP: Final = _Keep()
 
 
-def _is_real(statement: object) -> bool:
-    return is_action(statement) or is_parameter(statement) or is_task(statement)
-
-
-def _action_body(statement: Statement) -> Statement:
-    """The action without its conditions: what §4.3.6 calls the action's own parameters."""
-    return statement.model_copy(update={"speed": None, "until": None})
-
-
-def _describe(statement: object) -> str:
-    return getattr(statement, "kind", type(statement).__name__)
-
-
 @dataclass(frozen=True, slots=True)
 class Submission:
     """What a submission hands over: the statements for the robot, and the program left."""
@@ -140,9 +133,9 @@ class ProgramState:
         statements = tuple(self.statements)
         object.__setattr__(self, "statements", statements)
         for index, statement in enumerate(statements):
-            if not _is_real(statement):
+            if not is_real(statement):
                 raise InputError(
-                    f"statement {index + 1}: a program holds real statements only, got {_describe(statement)}"
+                    f"statement {index + 1}: a program holds real statements only, got {describe(statement)}"
                 )
         violations = program_violations(statements)
         if violations:
@@ -246,34 +239,23 @@ class ProgramState:
 
     # ---------------------------------------------------------------- checks
 
-    def check_insert(self, statement: object) -> Refusal | None:
+    def check_insert(self, statement: object, *, strict: bool = False) -> Refusal | None:
         """Why ``statement`` cannot be inserted before the selection, or ``None`` if it can."""
         if (locked := self._locked("insert a statement")) is not None:
             return locked
-        if not _is_real(statement):
+        if not is_real(statement):
             return Refusal(
-                Rule.INSERT_REAL, f"only a real statement can be inserted, not {_describe(statement)}", self.selected_index
+                Rule.INSERT_REAL, f"only a real statement can be inserted, not {describe(statement)}", self.selected_index
             )
-        at_end = self.selected_index == self.empty_index
-        if is_action(statement) and not at_end:
-            return Refusal(
-                Rule.INSERT_ACTION_AT_END,
-                f"a {statement.kind} action can only be inserted before the trailing empty statement "
-                f"(statement {self.selected_index + 1} is selected); inserting it here would break action continuity",
-                self.selected_index,
-            )
-        if is_task(statement) and not at_end:
-            return Refusal(
-                Rule.INSERT_TASK_AT_END,
-                f"a task call can only be inserted before the trailing empty statement "
-                f"(statement {self.selected_index + 1} is selected)",
-                self.selected_index,
-            )
-        if at_end and not may_follow(statement, unknown := self.unknown_pose):
-            return Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown), self.empty_index - 1)
-        return None
+        if strict:
+            return strict_insert(self, statement)
+        index = self.selected_index
+        if index == self.empty_index:  # at the end: only the task rule can refuse it
+            unknown = self.unknown_pose
+            return None if may_follow(statement, unknown) else Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown), index - 1)
+        return self._free((*self.statements[:index], statement, *self.statements[index:]), index)
 
-    def check_delete(self, first: int | None = None, last: int | None = None) -> Refusal | None:
+    def check_delete(self, first: int | None = None, last: int | None = None, *, strict: bool = False) -> Refusal | None:
         """Why entries ``first..last`` (both included; default: the selected range) cannot be
         deleted, or ``None`` if they can. The trailing empty statement in the range stays."""
         if (locked := self._locked("delete a statement")) is not None:
@@ -288,62 +270,46 @@ class ProgramState:
         if first == self.empty_index:
             return Refusal(Rule.DELETE_EMPTY, "the trailing empty statement cannot be deleted", first)
         stop = min(last, self.empty_index - 1)  # the last real statement deleted
-        if stop == self.empty_index - 1:
-            return None  # nothing but the empty statement follows: continuity is kept
-        motion_after = any(moves_arm(s) for s in self.statements[stop + 1 :])
-        for index in range(first, stop + 1):
-            st = self.statements[index]
-            if is_task(st) and moves_arm(st) and motion_after:
-                return Refusal(
-                    Rule.DELETE_ACTION_NOT_LAST,
-                    f"TASK {st.name} (statement {index + 1}) moves the arm and a motion follows it; "
-                    "deleting it would break action continuity (delete the motions after it first)",
-                    index,
-                )
-        actions = [i for i in range(first, stop + 1) if is_action(self.statements[i])]
-        if not actions:
-            return None  # parameter statements and tasks that keep the arm still may go anywhere
-        index = actions[0]
-        kind = self.statements[index].kind
-        if first == stop:
-            message = (
-                f"the {kind} action (statement {index + 1}) is not just before the trailing empty statement; "
-                "deleting it would break action continuity"
-            )
-        else:
-            message = (
-                f"statements {first + 1}..{stop + 1} hold the {kind} action (statement {index + 1}) and statement "
-                f"{stop + 2} follows them; deleting actions with statements after them would break action continuity "
-                "(delete a range that reaches the end, or parameter statements only)"
-            )
-        return Refusal(Rule.DELETE_ACTION_NOT_LAST, message, index)
+        if strict:
+            return strict_delete(self, first, stop)
+        return self._free(self.statements[:first] + self.statements[stop + 1 :], first)
 
-    def check_modify(self, statement: object) -> Refusal | None:
+    def check_modify(self, statement: object, *, strict: bool = False) -> Refusal | None:
         """Why the selected statement cannot be replaced by ``statement``, or ``None`` if it can."""
         if (locked := self._locked("modify a statement")) is not None:
             return locked
         index = self.selected_index
         if index == self.empty_index:
             return Refusal(Rule.MODIFY_EMPTY, "the trailing empty statement cannot be modified; insert instead", index)
-        old = self.statements[index]
-        if is_task(old):
-            return Refusal(Rule.MODIFY_TASK, f"the task call {old.name!r} cannot be modified; delete it instead", index)
-        if not _is_real(statement) or statement.kind != old.kind:
+        if strict:
+            return strict_modify(self, statement)
+        if not is_real(statement):
             return Refusal(
                 Rule.MODIFY_KIND,
-                f"a modification keeps the statement's kind: statement {index + 1} is {old.kind}, "
-                f"not {_describe(statement)}",
+                f"statement {index + 1} can only be replaced by a statement (an action, a parameter statement or a "
+                f"task call), not {describe(statement)}",
                 index,
             )
-        if is_action(old) and index != self.empty_index - 1 and _action_body(statement) != _action_body(old):
+        return self._free((*self.statements[:index], statement, *self.statements[index + 1 :]), index)
+
+    def check_move(self, by: int, *, strict: bool = False) -> Refusal | None:
+        """Why the selected range (its real statements) cannot move ``by`` places (negative: up),
+        or ``None`` if it can."""
+        if (locked := self._locked("move statements")) is not None:
+            return locked
+        first, last = self.selected_range
+        stop = min(last, self.empty_index - 1)
+        if first > stop or by == 0 or not 0 <= first + by <= stop + by < self.empty_index:
+            what = "the trailing empty statement" if first > stop else f"statements {first + 1}..{stop + 1}"
             return Refusal(
-                Rule.MODIFY_ACTION_PARAMETERS,
-                f"only the WITH and UNTIL conditions of the {old.kind} action (statement {index + 1}) can change; "
-                "its own parameters can change only when it is just before the trailing empty statement "
-                "(action continuity)",
-                index,
+                Rule.MOVE_RANGE,
+                f"cannot move {what} by {by}: statements move among the {self.empty_index} real statement(s), "
+                "the trailing empty statement stays last",
+                first,
             )
-        return None
+        if strict:
+            return strict_move(self, first, stop)
+        return self._free(self._moved(first, stop, by), first)
 
     def check_submit(self, start: int, stop: int) -> Refusal | None:
         """Why ``statements[start:stop]`` cannot be submitted, or ``None`` if it can."""
@@ -368,9 +334,9 @@ class ProgramState:
 
     # ---------------------------------------------------------------- operations
 
-    def insert(self, statement: Statement) -> ProgramState | Refusal:
+    def insert(self, statement: Statement, *, strict: bool = False) -> ProgramState | Refusal:
         """Insert ``statement`` before the selected one; the selection stays on the same statement."""
-        if (refusal := self.check_insert(statement)) is not None:
+        if (refusal := self.check_insert(statement, strict=strict)) is not None:
             return refusal
         index = self.selected_index
         return self._with(
@@ -378,27 +344,37 @@ class ProgramState:
             selected=index + 1,
         )
 
-    def delete(self, first: int | None = None, last: int | None = None) -> ProgramState | Refusal:
+    def delete(self, first: int | None = None, last: int | None = None, *, strict: bool = False) -> ProgramState | Refusal:
         """Delete entries ``first..last`` (default: the selected range; the trailing empty
         statement stays); the selection moves to the statement after the deleted range."""
         if first is None or last is None:
             first, last = self.selected_range
         if first > last:
             first, last = last, first
-        if (refusal := self.check_delete(first, last)) is not None:
+        if (refusal := self.check_delete(first, last, strict=strict)) is not None:
             return refusal
         stop = min(last, self.empty_index - 1) + 1
         return self._with(statements=self.statements[:first] + self.statements[stop:], selected=first)
 
-    def modify(self, statement: Statement) -> ProgramState | Refusal:
-        """Replace the selected statement by ``statement`` (same kind); the selection is kept."""
-        if (refusal := self.check_modify(statement)) is not None:
+    def modify(self, statement: Statement, *, strict: bool = False) -> ProgramState | Refusal:
+        """Replace the selected statement by ``statement`` (strict: of the same kind); the selection is kept."""
+        if (refusal := self.check_modify(statement, strict=strict)) is not None:
             return refusal
         index = self.selected_index
         return self._with(statements=(*self.statements[:index], statement, *self.statements[index + 1 :]))
 
+    def move(self, by: int, *, strict: bool = False) -> ProgramState | Refusal:
+        """Move the selected range's statements ``by`` places (negative: up); the selection moves with them."""
+        if (refusal := self.check_move(by, strict=strict)) is not None:
+            return refusal
+        first, last = self.selected_range
+        stop = min(last, self.empty_index - 1)
+        cursor = min(self.selected_index, stop) + by
+        anchor = None if self.anchor is None else min(self.anchor, stop) + by
+        return self._with(statements=self._moved(first, stop, by), selected=cursor, anchor=anchor)
+
     def modify_conditions(
-        self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP
+        self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP, *, strict: bool = False
     ) -> ProgramState | Refusal:
         """Set or clear (``None``) the WITH speed and UNTIL condition of the selected action.
 
@@ -420,7 +396,7 @@ class ProgramState:
             fields["speed"] = speed
         if until is not KEEP:
             fields["until"] = until
-        return self.modify(type(old)(**fields))
+        return self.modify(type(old)(**fields), strict=strict)
 
     def submit(self, start: int, stop: int) -> Submission | Refusal:
         """Take ``statements[start:stop]`` out of the program for the robot; ``start`` must be 0.
@@ -466,6 +442,17 @@ class ProgramState:
             f"cannot {what} while statements {start + 1}..{stop} are being previewed; only selection is allowed",
         )
 
+    def _free(self, statements: tuple[Statement, ...], where: int) -> Refusal | None:
+        """Free mode: why the edited program ``statements`` cannot run where this one could."""
+        return free_edit_refusal(self.statements, statements, where)
+
+    def _moved(self, first: int, stop: int, by: int) -> tuple[Statement, ...]:
+        """The statements with ``first..stop`` (both included) moved ``by`` places."""
+        block = self.statements[first : stop + 1]
+        rest = self.statements[:first] + self.statements[stop + 1 :]
+        at = first + by
+        return (*rest[:at], *block, *rest[at:])
+
     def _outside(self, index: int) -> Refusal | None:
         if 0 <= index <= self.empty_index:
             return None
@@ -501,16 +488,21 @@ class _Step:
 class Editor:
     """The current :class:`ProgramState` with an undo/redo history of every edit.
 
-    Edits (insert, delete, modify, modify_conditions) are recorded; undo returns to exactly the
-    state before the edit (selection included), redo to exactly the state after it. Selection
-    moves and preview start/end are not edits and are not recorded. A submission is not
-    undoable (the robot has the statements) and clears the history: nothing before it can be
-    undone either, since that would bring submitted statements back into the program.
+    Edits (insert, delete, modify, modify_conditions, move_statements, load) are recorded; undo
+    returns to exactly the state before the edit (selection included), redo to exactly the state
+    after it. Selection moves, preview start/end and the editing mode are not edits and are not
+    recorded. A submission is not undoable (the robot has the statements) and clears the
+    history: nothing before it can be undone either, since that would bring submitted statements
+    back into the program.
+
+    ``strict``: the thesis's editing rules (§4.3.6, ``shared.program.strict_rules``) instead of
+    free editing (``shared.program.free_rules``, the default).
     """
 
-    def __init__(self, state: ProgramState | None = None, max_history: int = 1000) -> None:
+    def __init__(self, state: ProgramState | None = None, max_history: int = 1000, *, strict: bool = False) -> None:
         self._state = state if state is not None else ProgramState()
         self.max_history = max_history
+        self.strict = bool(strict)
         self._undo: list[_Step] = []
         self._redo: list[_Step] = []
         self._submitted = False
@@ -521,33 +513,49 @@ class Editor:
         return self._state
 
     def __repr__(self) -> str:
-        return f"Editor({self._state!r}, undo={len(self._undo)}, redo={len(self._redo)})"
+        mode = "strict" if self.strict else "free"
+        return f"Editor({self._state!r}, {mode}, undo={len(self._undo)}, redo={len(self._redo)})"
 
     # ------------------------------------------------------------ edits
 
     def insert(self, statement: Statement) -> ProgramState | Refusal:
-        return self._edit(f"insert {_describe(statement)}", self.state.insert(statement))
+        return self._edit(f"insert {describe(statement)}", self.state.insert(statement, strict=self.strict))
 
     def delete(self, first: int | None = None, last: int | None = None) -> ProgramState | Refusal:
         """Delete the selected range (or ``first..last``): one edit, one undo step."""
         if first is None or last is None:
             first, last = self.state.selected_range
-        result = self.state.delete(first, last)
+        result = self.state.delete(first, last, strict=self.strict)
         if isinstance(result, Refusal):
             return self._refused(result)
         lo = min(first, last)
         count = len(self.state.statements) - len(result.statements)
-        label = f"delete {_describe(self.state.entries[lo])}" if count == 1 else f"delete statements {lo + 1}..{lo + count}"
+        label = f"delete {describe(self.state.entries[lo])}" if count == 1 else f"delete statements {lo + 1}..{lo + count}"
         return self._edit(label, result)
 
     def modify(self, statement: Statement) -> ProgramState | Refusal:
-        return self._edit(f"modify {_describe(statement)}", self.state.modify(statement))
+        return self._edit(f"modify {describe(statement)}", self.state.modify(statement, strict=self.strict))
 
     def modify_conditions(
         self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP
     ) -> ProgramState | Refusal:
-        label = f"modify conditions of {_describe(self.state.selected_statement)}"
-        return self._edit(label, self.state.modify_conditions(speed, until))
+        label = f"modify conditions of {describe(self.state.selected_statement)}"
+        return self._edit(label, self.state.modify_conditions(speed, until, strict=self.strict))
+
+    def move_statements(self, by: int) -> ProgramState | Refusal:
+        """Move the selected range ``by`` places (negative: up): one edit, one undo step."""
+        first, last = self.state.selected_range
+        stop = min(last, self.state.empty_index - 1)
+        what = f"statement {first + 1}" if first >= stop else f"statements {first + 1}..{stop + 1}"
+        direction = "up" if by < 0 else "down"
+        return self._edit(f"move {what} {direction}", self.state.move(by, strict=self.strict))
+
+    def load(self, state: ProgramState, label: str = "load program") -> ProgramState | Refusal:
+        """Replace the whole program (a file loaded): an edit like any other, so undo brings back
+        the program it replaced."""
+        if (locked := self.state._locked("load a program")) is not None:
+            return self._refused(locked)
+        return self._edit(label, state)
 
     def submit(self, start: int, stop: int) -> Submission | Refusal:
         result = self.state.submit(start, stop)

@@ -29,6 +29,17 @@ The rules, as §4.3.6 states them (2) "语句管理规则", 3) preview, 4) submi
 * Submitted statements leave the program. Only a prefix may be submitted (the robot then
   continues from where the last submitted statement leaves it, which is where the next
   remaining action starts); submitted statements cannot be taken back by undo.
+
+These are the rules of the *strict* mode (``Editor(strict=True)``; in the console
+``SessionSettings.strict_editing``, the Program tab's box, ``PUT /api/program/editing``). The
+default is *free* editing (``shared.program.free_rules``): every action
+names only its absolute target, so any statement or range may be deleted, replaced, moved or
+inserted anywhere, and the statement after an edit simply starts where the one before it now
+ends. A free edit is refused only when its result cannot run: a motion after a task whose end
+pose only the robot knows (``edit.after-task``), a later task whose gripper state the edit breaks
+(``edit.task-state``), or, checked by the console against the robot and the cell, a statement
+after the edit that could no longer be planned, or would leave a joint range or collide
+(``edit.path``). The rule ids are for the API and tooltips; the sentences are for the operator.
 """
 
 from __future__ import annotations
@@ -39,6 +50,7 @@ from enum import Enum
 from typing import TypeVar
 
 from shared.errors import InputError
+from shared.language.statements import Statement, is_action, is_parameter, is_task
 from shared.language.task_rule import task_rule_breaks
 
 
@@ -95,6 +107,18 @@ class Rule(str, Enum):
     PROGRAM_AFTER_TASK = "program.after-task"
     """In a program, nothing that moves the arm may follow a task call whose end pose is unknown."""
 
+    MOVE_RANGE = "move.range"
+    """A move shifts real statements within the program (not past its ends, not the empty one)."""
+    MOVE_MOTION = "move.motion"
+    """Strict mode: only parameter statements and tasks that keep the arm still can be moved."""
+
+    EDIT_AFTER_TASK = "edit.after-task"
+    """Free mode: the edit would put a motion after a task call whose end pose is unknown."""
+    EDIT_TASK_STATE = "edit.task-state"
+    """Free mode: the edit would break the gripper state a later task call needs."""
+    EDIT_PATH = "edit.path"
+    """Free mode: a statement after the edit could no longer run (the console re-plans the rest)."""
+
 
 @dataclass(frozen=True, slots=True)
 class Refusal:
@@ -126,6 +150,21 @@ def unwrap(result: T | Refusal) -> T:
     if isinstance(result, Refusal):
         raise RefusedError(result)
     return result
+
+
+def is_real(statement: object) -> bool:
+    """An action, a parameter statement or a task call: what a program holds."""
+    return is_action(statement) or is_parameter(statement) or is_task(statement)
+
+
+def action_body(statement: Statement) -> Statement:
+    """The action without its conditions: what §4.3.6 calls the action's own parameters."""
+    return statement.model_copy(update={"speed": None, "until": None})
+
+
+def describe(statement: object) -> str:
+    """A statement's kind (``DRAW``), or the type of something that is not one."""
+    return getattr(statement, "kind", type(statement).__name__)
 
 
 @dataclass(frozen=True, slots=True)

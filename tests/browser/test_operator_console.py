@@ -84,10 +84,13 @@ def test_select_edit_delete_undo(ui: ConsolePage) -> None:
     ui.click("Replace")
     wait_for(lambda: "WITH SPEED 20" in entries(ui)[0]["text"], what="statement 1 has WITH SPEED")
     ui.text_appears(r"1: DRAW TO \(0[^\n]*WITH SPEED 20")
-    # deleting it is refused: an action is deleted only just before the empty statement
+    # free editing (the default): it goes although an action follows it, and Undo brings it back
     ui.click("Delete")
-    ui.text_appears(r"Refused:.*delete\.action-not-last")
-    assert len(entries(ui)) == 3
+    wait_for(lambda: len(entries(ui)) == 2, what="statement 1 deleted")
+    assert ui.session()["program"]["refusal"] is None
+    ui.click("Undo")
+    wait_for(lambda: len(entries(ui)) == 3, what="statement 1 back")
+    assert "WITH SPEED 20" in entries(ui)[0]["text"]
     # select the last one and delete it, then undo the deletion
     ui.choose("Selected", "2: DRAW TO (60", exact=False)
     wait_for(lambda: ui.session()["program"]["selected"] == 1, what="statement 2 selected")

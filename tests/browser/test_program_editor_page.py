@@ -1,6 +1,6 @@
 """The program list as an editor, in headless Chromium with mouse and keyboard only (issue 16,
 finding 4): click a line to select it, shift-click a range, arrows, Delete a range, Ctrl+Z /
-Ctrl+Shift+Z / Ctrl+Y, each refusal on its line, each statement's planned duration, a submission
+Ctrl+Shift+Z / Ctrl+Y, each refusal on its line (strict editing: the thesis's rules), each statement's planned duration, a submission
 from the middle refused on its line, a sent list that pages.
 
 One console (``teleprog up --delay-ms 200``: console, link and telerobot as processes) and one
@@ -152,23 +152,37 @@ def test_arrows_delete_and_undo_redo_from_the_keyboard(ui: ConsolePage) -> None:
     wait_for(lambda: len(program(ui)["entries"]) == 3, what="redo with Ctrl+Y")
 
 
+def strict_editing(ui: ConsolePage, on: bool) -> None:
+    """Tick or clear the Program tab's "Strict editing" box (the thesis's rules; free editing is
+    the default and has its own page test, ``test_free_editing_page.py``)."""
+    if program(ui)["strict_editing"] != on:
+        ui.page.get_by_label("Strict editing (thesis rules)", exact=True).click()
+    wait_for(lambda: program(ui)["strict_editing"] is on, what=f"strict editing {'on' if on else 'off'}")
+
+
 def test_a_refused_range_delete_is_shown_on_its_line(ui: ConsolePage) -> None:
     load(ui, UP, "SPEED 50 %", ACROSS, BACK)
-    click_line(ui, 1)
-    click_line(ui, 2, shift=True)
-    range_is(ui, 1, 2)
-    ui.page.keyboard.press("Delete")
-    refusal = ui.page.locator('[data-program-list] [data-refusal-for="2"]')  # under the DRAW at 3
-    refusal.wait_for(timeout=PAGE_S * 1000)
-    assert "delete.action-not-last" in refusal.inner_text()
-    assert line(ui, 2).get_attribute("data-refused") == "true"
-    assert len(program(ui)["entries"]) == 5  # nothing deleted
-    # the range that reaches the end goes, in one step; the refusal leaves with the change
-    click_line(ui, 4, shift=True)
-    range_is(ui, 1, 4)
-    ui.page.keyboard.press("Delete")
-    wait_for(lambda: [e["text"] for e in program(ui)["entries"][:-1]] == [UP], what="statements 2..4 deleted")
-    ui.page.locator("[data-program-list] [data-refusal-for]").wait_for(state="detached", timeout=PAGE_S * 1000)
+    strict_editing(ui, True)
+    try:
+        click_line(ui, 1)
+        click_line(ui, 2, shift=True)
+        range_is(ui, 1, 2)
+        ui.page.keyboard.press("Delete")
+        refusal = ui.page.locator('[data-program-list] [data-refusal-for="2"]')  # under the DRAW at 3
+        refusal.wait_for(timeout=PAGE_S * 1000)
+        assert "action continuity" in refusal.inner_text()
+        assert refusal.get_attribute("title") == "rule delete.action-not-last"  # the id in the tooltip only
+        assert "delete.action-not-last" not in refusal.inner_text()
+        assert line(ui, 2).get_attribute("data-refused") == "true"
+        assert len(program(ui)["entries"]) == 5  # nothing deleted
+        # the range that reaches the end goes, in one step; the refusal leaves with the change
+        click_line(ui, 4, shift=True)
+        range_is(ui, 1, 4)
+        ui.page.keyboard.press("Delete")
+        wait_for(lambda: [e["text"] for e in program(ui)["entries"][:-1]] == [UP], what="statements 2..4 deleted")
+        ui.page.locator("[data-program-list] [data-refusal-for]").wait_for(state="detached", timeout=PAGE_S * 1000)
+    finally:
+        strict_editing(ui, False)
 
 
 def test_each_line_shows_its_planned_duration(ui: ConsolePage) -> None:

@@ -98,8 +98,15 @@ def test_whole_session_through_the_api(up: RunningConsole) -> None:
         program = call(up, "POST", "/api/program/insert", {"text": "EVENT transferred"})
         assert [e["kind"] for e in program["entries"]] == ["DRAW", "DRIVE", "EVENT", "EMPTY"]
         call(up, "POST", "/api/program/select", {"index": 1})
+        # free editing (the default): an action goes in anywhere, the rest re-planned; undo takes it out
+        program = call(up, "POST", "/api/program/insert", {"text": "DRIVE J2 TO -40 deg"})
+        assert [e["kind"] for e in program["entries"]] == ["DRAW", "DRIVE", "DRIVE", "EVENT", "EMPTY"]
+        program = call(up, "POST", "/api/program/undo")
+        assert [e["kind"] for e in program["entries"]] == ["DRAW", "DRIVE", "EVENT", "EMPTY"]
+        call(up, "PUT", "/api/program/editing", {"strict": True})  # the thesis's rules refuse it
         refused = up.api("POST", "/api/program/insert", headers=CLIENT, json={"text": "DRIVE J2 TO 0 deg"})
         assert refused.status_code == 409 and refused.json()["rule"] == "insert.action-at-end"
+        call(up, "PUT", "/api/program/editing", {"strict": False})
         call(up, "POST", "/api/program/select", {"index": 3})
         # quasi regime: send only what was previewed
         early = up.api("POST", "/api/submit", headers=CLIENT, json={"start": 0, "stop": 3})

@@ -1,4 +1,5 @@
-"""The program editor (thesis §4.3.6): rules, invariants under random use, exact undo/redo.
+"""The program editor in its strict mode (thesis §4.3.6): rules, invariants under random use,
+exact undo/redo. Free editing, the default, is tested in ``test_free_editing.py``.
 
 The state machine below keeps its own record of what must hold and re-derives, from the thesis's
 wording, which rule should refuse each operation; so it catches both an editor that allows too
@@ -171,7 +172,7 @@ class EditorMachine(RuleBasedStateMachine):
 
     def __init__(self) -> None:
         super().__init__()
-        self.editor = Editor()
+        self.editor = Editor(strict=True)
         # (state before, state after) of each edit undo can take back, and of each undone edit
         self.undo_steps: list[tuple[ProgramState, ProgramState]] = []
         self.redo_steps: list[tuple[ProgramState, ProgramState]] = []
@@ -465,7 +466,7 @@ TASK = TaskCall(name="insert_peg", args=("PEG", "HOLE1"))
 
 
 def editor_with(*statements, selected: int | None = None) -> Editor:
-    return Editor(ProgramState.of(statements, selected))
+    return Editor(ProgramState.of(statements, selected), strict=True)
 
 
 def _previewing(editor: Editor) -> Editor:
@@ -499,10 +500,19 @@ SCENARIOS: dict[Rule, Callable[[], object]] = {
     Rule.UNDO_NOTHING: lambda: Editor().undo(),
     Rule.UNDO_SUBMITTED: lambda: _after_submit(editor_with(D1, D2)).undo(),
     Rule.REDO_NOTHING: lambda: editor_with(D1).redo(),
+    Rule.MOVE_RANGE: lambda: editor_with(D1, D2, selected=0).move_statements(-1),
+    Rule.MOVE_MOTION: lambda: editor_with(D1, D2, selected=0).move_statements(1),
+    # free editing (the default): refused only where the result cannot run
+    Rule.EDIT_AFTER_TASK: lambda: Editor(ProgramState.of((D1, TASK, SPD), selected=2)).modify(D2),
+    Rule.EDIT_TASK_STATE: lambda: Editor(ProgramState.of((GRASP, D1, EXTRACT), selected=0)).delete(),
 }
+GRASP = TaskCall(name="grasp", args=("peg",))
+EXTRACT = TaskCall(name="extract_peg", args=("peg", "HOLE1"))
+CONSOLE_RULES = {Rule.PROGRAM_AFTER_TASK, Rule.EDIT_PATH}
+"""Rules a whole program or the console's re-planning applies, not one editor operation alone."""
 
 
-@pytest.mark.parametrize("rule_", [r for r in Rule if r is not Rule.PROGRAM_AFTER_TASK], ids=lambda r: r.value)
+@pytest.mark.parametrize("rule_", [r for r in Rule if r not in CONSOLE_RULES], ids=lambda r: r.value)
 def test_each_rule_refuses_with_its_id(rule_: Rule) -> None:
     assert rule_ in SCENARIOS, f"no scenario exercises rule {rule_.value}"
     assert_refused(SCENARIOS[rule_](), rule_)
@@ -521,7 +531,7 @@ def test_a_program_that_moves_the_arm_after_an_unknown_end_is_rejected() -> None
 
 def test_after_a_task_with_a_known_end_anything_may_follow() -> None:
     grasp, extract = TaskCall(name="grasp", args=("peg",)), TaskCall(name="extract_peg", args=("peg", "HOLE1"))
-    editor = Editor()
+    editor = Editor(strict=True)
     for statement in (D1, grasp, extract, D2, EV, TASK, TaskCall(name="release"), MODE):
         unwrap(editor.insert(statement))
     assert editor.state.unknown_pose is not None and editor.state.unknown_pose.task == "insert_peg"
@@ -541,7 +551,7 @@ def test_new_program_is_one_selected_empty_statement() -> None:
 
 
 def test_insert_goes_before_the_selection_and_keeps_it() -> None:
-    editor = Editor()
+    editor = Editor(strict=True)
     unwrap(editor.insert(D1))
     unwrap(editor.insert(D2))
     assert editor.state.statements == (D1, D2)
@@ -632,7 +642,7 @@ def test_preview_locks_everything_but_selection() -> None:
 
 
 def test_undo_and_redo_walk_the_history_exactly() -> None:
-    editor = Editor()
+    editor = Editor(strict=True)
     s1 = unwrap(editor.insert(D1))
     s2 = unwrap(editor.insert(SPD))
     unwrap(editor.select(0))  # not an edit: not recorded
@@ -655,7 +665,7 @@ def test_undo_and_redo_walk_the_history_exactly() -> None:
 
 
 def test_a_new_edit_drops_the_redo_history() -> None:
-    editor = Editor()
+    editor = Editor(strict=True)
     unwrap(editor.insert(D1))
     unwrap(editor.undo())
     unwrap(editor.insert(D2))

@@ -1,5 +1,5 @@
-"""Ranges in the program editor: select a range, delete it under the continuity rule, one undo
-step; refusals name the statement they concern (``Refusal.index``)."""
+"""Ranges in the program editor: select a range, delete it under the thesis's continuity rule
+(strict mode), one undo step; refusals name the statement they concern (``Refusal.index``)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ SLOW = SetSpeed(speed=Speed(value=0.2, unit=SpeedUnit.FRACTION))
 
 
 def editor(*statements, selected: int | None = None) -> Editor:
-    return Editor(ProgramState.of(statements, selected))
+    return Editor(ProgramState.of(statements, selected), strict=True)
 
 
 def test_shift_select_makes_a_range_and_a_plain_select_collapses_it() -> None:
@@ -109,5 +109,5 @@ def test_submit_refusals_name_their_first_statement(start, stop, rule, index) ->
 
 def test_insert_and_modify_refusals_name_the_selected_line() -> None:
     state = ProgramState.of((D1, D2), selected=0)
-    assert state.check_insert(D3).index == 0
-    assert state.check_modify(D3).index == 0
+    assert state.check_insert(D3, strict=True).index == 0
+    assert state.check_modify(D3, strict=True).index == 0

@@ -30,6 +30,7 @@ def test_the_view_carries_the_selected_range(session: Session) -> None:
 
 
 def test_a_refusal_stays_on_its_line_until_the_next_edit(session: Session) -> None:
+    session.program.set_strict_editing(True)  # the thesis's rules refuse a motion from the middle
     _program(session, UP, "SPEED 50 %", ACROSS)
     session.program.select_range(0, 1)
     with pytest.raises(RefusedByRule):
@@ -85,6 +86,7 @@ def test_the_http_api_selects_moves_and_deletes_ranges(session: Session) -> None
     add_error_handler(app)
     app.include_router(router)
     http = TestClient(app)
+    assert http.put("/api/program/editing", json={"strict": True}).json()["strict_editing"] is True
     _program(session, UP, "SPEED 50 %", "SPEED 20 %", ACROSS)
     assert http.post("/api/program/select", json={"index": 1}).json()["selected_range"] == [1, 1]
     assert http.post("/api/program/move", json={"by": 1, "extend": True}).json()["selected_range"] == [1, 2]

@@ -73,6 +73,7 @@ def test_auto_generation_off_adds_nothing(session: Session, clock) -> None:
 
 
 def test_editor_refusals_name_their_rule_and_undo_restores(session: Session) -> None:
+    session.program.set_strict_editing(True)  # the thesis's rules; free editing: tests/program/test_free_editing*.py
     session.program.insert("DRIVE J1 TO 10 deg")
     session.program.insert("DRIVE J2 TO -40 deg")
     session.program.select(0)
