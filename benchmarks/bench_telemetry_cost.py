@@ -53,6 +53,7 @@ import argparse
 import collections
 import json
 import os
+import secrets
 import re
 import shutil
 import socket
@@ -116,7 +117,9 @@ class Pair:
     """A telerobot at ``rate`` Hz and a console attached to it, both started and ready."""
 
     def __init__(self, rate: float, log_dir: Path, tag: str, record: bool = False) -> None:
-        env = {**os.environ, "PYTHONUNBUFFERED": "1", "TELEPROG_ROBOT_TELEMETRY_RATE": repr(float(rate))}
+        # the robot and its console share a credential (shared.wire.credential), as teleprog up's do
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "TELEPROG_ROBOT_TELEMETRY_RATE": repr(float(rate)),
+               "TELEPROG_ROBOT_CREDENTIAL": os.environ.get("TELEPROG_ROBOT_CREDENTIAL") or secrets.token_urlsafe(32)}
         self.rate = rate
         self.robot_port, self.port = _free_port(), _free_port()
         self.robot_log, self.console_log = log_dir / f"robot-{tag}.log", log_dir / f"console-{tag}.log"

@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import logging
 import uuid
+from collections import OrderedDict
 
 from pydantic import BaseModel
 
@@ -36,6 +37,8 @@ from shared.language.formatter import format_statement
 from shared.wire.messages import (
     MAX_HELD_LISTED,
     MAX_HELD_TEXT,
+    MAX_RAN_LISTED,
+    WELCOME_BUDGET_BYTES,
     MAX_TEXT,
     AbortFlush,
     HaltCause,
@@ -52,6 +55,7 @@ from shared.wire.messages import (
     Stop,
     Welcome,
 )
+from shared.language.statements import Statement
 from shared.wire.session import CommandReceiver, ReceiverStep
 from shared.wire.telemetry import TelemetryFrame, encode_frame
 
@@ -79,6 +83,8 @@ class RobotCore:
         self._heartbeats = 0
         self._next_heartbeat = 0.0
         self._unsent: list[Halted] = []  # halts made while no console was greeted
+        self._statements: dict[int, Statement] = {}  # number -> statement, from acceptance to its final report
+        self._ran: OrderedDict[int, tuple[Statement, StatementState]] = OrderedDict()  # the newest finished ones
 
     # -- command channel ----------------------------------------------------------------------
     def connect(self) -> None:
@@ -134,22 +140,40 @@ class RobotCore:
             "heartbeat_s": self.heartbeat_s,
             "silence_limit_s": self.silence_limit_s,
             "halted": self.executor.halted[:MAX_TEXT] if self.executor.halted else None,
-            "holds": self._holds(),
+            "holds": (account := self._account())[0],
             "holds_total": len(self.executor.queue) + (self.executor.current is not None),
+            "ran": account[1],
+            "numbered": self.receiver.next_number - 1,
         })
 
-    def _holds(self) -> list[HeldStatement]:
-        """What the robot holds, running first, then queued in order (for a console that
-        connects, restarted or not, to show before anybody resumes)."""
-        ex, senders = self.executor, self.receiver.senders
-        held = [] if ex.current is None else [(*ex.current, True)]
-        held += [(n, s, False) for n, s in itertools.islice(ex.queue, MAX_HELD_LISTED - len(held))]
-        return [HeldStatement(number=n, text=_cut(format_statement(s), MAX_HELD_TEXT), running=running,
-                              client_id=senders.get(n)) for n, s, running in held]
+    def _account(self) -> tuple[list[HeldStatement], list[HeldStatement]]:
+        """What the robot holds (running first, then queued in order) and the newest it finished
+        (oldest first), for a console that connects, restarted or not, to show before anybody
+        resumes. Both lists are cut where the welcome would pass ``WELCOME_BUDGET_BYTES`` (the
+        held ones come first: they are what a resume runs)."""
+        ex = self.executor
+        held = [] if ex.current is None else [(*ex.current, "running")]
+        held += [(n, s, "received") for n, s in itertools.islice(ex.queue, MAX_HELD_LISTED - len(held))]
+        budget = [WELCOME_BUDGET_BYTES]
+        holds = self._listed(held, budget)
+        ran = self._listed([(n, s, state.value) for n, (s, state) in reversed(self._ran.items())], budget)
+        return holds, ran[::-1]
+
+    def _listed(self, items, budget: list[int]) -> list[HeldStatement]:
+        out = []
+        for number, statement, state in items:
+            text = format_statement(statement)
+            budget[0] -= 3 * len(text) + 150  # its text, its JSON form (about as long) and the fields around them, with room to spare
+            if budget[0] < 0:
+                break
+            out.append(HeldStatement(number=number, text=_cut(text, MAX_HELD_TEXT), running=state == "running",
+                                     client_id=self.receiver.senders.get(number), state=state, statement=statement))
+        return out
 
     def _apply(self, step: ReceiverStep) -> list[BaseModel]:
         out: list[BaseModel] = list(step.replies)
         for number, statement in step.accepted:
+            self._statements[number] = statement
             self.executor.enqueue(number, statement)
         for cmd in step.recoveries:
             if isinstance(cmd, Stop):
@@ -243,6 +267,10 @@ class RobotCore:
     def _reports(self, events) -> list[BaseModel]:
         out = []
         for e in events:
+            if e.state.final and (statement := self._statements.pop(e.number, None)) is not None:
+                self._ran[e.number] = (statement, e.state)
+                while len(self._ran) > MAX_RAN_LISTED:
+                    self._ran.popitem(last=False)
             robot = e.snapshot if e.state is not StatementState.RUNNING else None
             out.append(self.receiver.report(e.number, e.state, e.reason, robot, robot_time=self.executor.time))
         return out

@@ -12,6 +12,9 @@ Heartbeats and the silence halt are the core's (``robot_sim.core``): ``heartbeat
 ``silence_limit_s`` are settings. No message and no servo tick can end the process: each handler
 and each tick has a last-resort boundary that logs the error and keeps serving.
 
+Both channels require the robot's credential (``shared.wire.credential``; ``robot_sim.credential``
+says which): an upgrade without it is refused with HTTP 401 and one line, before any message.
+
 One console connection at a time on ``/command``: a second one replaces the first (the console
 reconnecting through a restarted link must not wait for the old socket to time out).
 """
@@ -33,8 +36,10 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Response
 
+from robot_sim.credential import RobotCredential, given_credential, made_credential
 from robot_sim.settings import RobotSettings
 from shared.startup_trace import mark
+from shared.wire import credential as door
 from shared.wire.messages import Rejected, RejectReason, Welcome, encode_message
 
 if TYPE_CHECKING:
@@ -63,6 +68,12 @@ class RobotService:
         self._telemetry: set[ServerConnection] = set()
         self._server = None
         self.port = settings.port
+        self.credential: RobotCredential | None = given_credential(settings)
+        """Required of every connection; made (and written to a user-only file) once the port is
+        known when the settings give none."""
+        self.refused = 0
+        """Connections refused for a missing or wrong credential."""
+        self._refusal_logged_at = -1e9
 
     def build_core(self) -> RobotCore:
         """The cell, the simulated world and the executor (with its collision model)."""
@@ -100,6 +111,10 @@ class RobotService:
         ) as server:
             self._server = server
             self.port = next(iter(server.sockets)).getsockname()[1]
+            if self.credential is None:  # no await since serve: nothing was let in without one
+                self.credential = made_credential(self.port)
+                log.info("no credential given: made one, written to %s (give the console --robot-credential-file %s)",
+                         self.credential.file, self.credential.file)
             mark("robot", "listening")
             if on_ready:
                 on_ready(self.port)
@@ -117,6 +132,17 @@ class RobotService:
             return Response(http.HTTPStatus.OK, "OK", Headers({"Content-Type": "application/json"}), body)
         if request.path not in ("/command", "/telemetry"):
             return connection.respond(http.HTTPStatus.NOT_FOUND, f"no channel at {request.path}\n")
+        if self.credential is None:
+            return connection.respond(http.HTTPStatus.SERVICE_UNAVAILABLE, "the robot is starting\n")
+        reason = door.refusal(request.headers.get(door.HEADER), self.credential.secret)
+        if reason is not None:
+            self.refused += 1
+            now = time.monotonic()
+            if now - self._refusal_logged_at > 60.0:  # a console retrying with no credential: a line a minute
+                self._refusal_logged_at = now
+                log.warning("refused a connection to %s from %s (%d so far): %s", request.path,
+                            connection.remote_address, self.refused, reason)
+            return connection.respond(http.HTTPStatus.UNAUTHORIZED, reason + "\n")
         return None
 
     def health(self) -> dict[str, object]:
@@ -125,7 +151,7 @@ class RobotService:
         core = self.core
         if core is None:
             return {"status": "ok", "core_ready": False, "state": "starting", "queued": 0, "current": None,
-                    "numbered": 0, "console": False, "halted": None}
+                    "numbered": 0, "console": False, "halted": None, "refused": self.refused}
         ex = core.executor
         return {
             "status": "ok",
@@ -136,6 +162,7 @@ class RobotService:
             "numbered": core.receiver.next_number - 1,
             "console": core.connected,
             "halted": ex.halted,
+            "refused": self.refused,
         }
 
     # -- channels ---------------------------------------------------------------------------------

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from shared.language import bounds
@@ -89,6 +91,13 @@ class RobotSettings(BaseSettings):
         False,
         description="listen before loading the cell and building the core; /health says core_ready "
         "(teleprog up, which loaded the cell already, starts its telerobot so)",
+    )
+    credential: SecretStr | None = Field(
+        None, description="the credential consoles must present (TELEPROG_ROBOT_CREDENTIAL; teleprog up sets it for its robot)",
+    )
+    credential_file: Path | None = Field(
+        None, description="a file, readable by its owner alone, holding the credential (used when no credential is set; "
+        "with neither, the robot makes one and writes it to a file it names)",
     )
     world: WorldSettings = WorldSettings()
     executor: ExecutorSettings = ExecutorSettings()

@@ -27,11 +27,11 @@ from server.trials.service import TrialBatches
 from server.api_docs import add_offline_docs
 from server.api_models import HealthOut
 from server.loop_watch import LoopWatch
-from server.console import Session
+from server.console import Session, SessionSettings
 from server.http_errors import ERROR_RESPONSES, add_error_handler
 from server.recording.recorder import SessionRecorder, record_session
 from server.settings import ConsoleSettings
-from server.up.early import EarlyRobot
+from server.up.early import EarlyRobot, robot_credential
 from server.viser_host import add_viser_routes, start_viser
 from shared.cells.loader import load_cell
 from shared.startup_trace import mark
@@ -75,14 +75,14 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        session = Session(cell)
+        session = Session(cell, SessionSettings(strict_editing=settings.strict_editing))
         if children is not None:
             session.link.watch_children(children)
         recorder = record_session(session, settings, started_link=children is not None)
         tasks: list[asyncio.Task] = []
         own_robot = None  # a robot client this app started itself (closed with it)
         if robot is None and settings.robot_url and not settings.no_robot:
-            own_robot = EarlyRobot(settings.robot_url, settings, []).start()
+            own_robot = EarlyRobot(settings.robot_url, settings, [], robot_credential(settings, make=False)).start()
         attached = robot or own_robot
         if attached is not None:
             session.attach_robot(attached.wait_client(), attached.loop)

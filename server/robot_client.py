@@ -30,6 +30,9 @@ What keeps the channels honest (``health()`` says it all at once):
   open but silent for ``reconnect_silence_s`` is closed and opened again;
 * ``Halted`` (the robot stopped by itself) is kept in ``halted`` until a resume, skip or abort is
   acknowledged as applied (``Welcome.halted`` sets or clears it too);
+* the robot's door: both channels present ``credential`` (``shared.wire.credential``); a robot
+  (or a link relaying its answer) that refuses the connection for it is kept in ``door`` with the
+  robot's reason, logged once, shown in the link view, and retried quietly;
 * a welcome from another robot session (the robot restarted) fails every waiting submission,
   command and final with ``RobotRestarted``: their fate is unknown, and nothing of the old session
   is sent to the new robot.
@@ -38,8 +41,9 @@ What keeps the channels honest (``health()`` says it all at once):
 from __future__ import annotations
 
 import asyncio
-import functools
 import logging
+import os
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable
@@ -47,15 +51,17 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel
 from websockets.asyncio.client import ClientConnection, connect
-from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
-from websockets.frames import DATA_OPCODES, Frame, Opcode
+from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidStatus, InvalidURI
 
 from server.delivery import Delivery
+from server.robot_telemetry import TelemetryChannel
 from shared.errors import TeleprogError
 from shared.startup_trace import mark
 from shared.language.statements import Statement
+from shared.wire import credential as door_keys
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S, SilenceWatch
 from shared.wire.messages import (
+    MAX_ROBOT_MESSAGE_BYTES,
     ROBOT_TYPES,
     AbortFlush,
     Accepted,
@@ -74,47 +80,15 @@ from shared.wire.messages import (
     encode_message,
 )
 from shared.wire.session import CommandSender, SessionRestart
-from shared.wire.telemetry import FRAME_RATE_HZ, TelemetryError, TelemetryFrame, decode_frame
+from shared.wire.telemetry import FRAME_RATE_HZ, TelemetryFrame
 
 log = logging.getLogger("teleprog.client")
 
 MAX_MESSAGE_BYTES = 4 << 20
+REFUSED_CLOSE_CODE = 1008
+"""Close code with which a link relays the robot's refusal (``server.relay.link_relay``)."""
 RECONNECT_SILENCE_FACTOR = 10.0
 """An open socket silent for this many silence limits is closed and opened again."""
-
-
-class _TelemetryConnection(ClientConnection):
-    """The telemetry socket: each whole binary message goes to ``on_message`` as soon as the
-    protocol has parsed it, inside the transport's data callback. ``recv`` is never used on it, so
-    a frame costs no queue, no future and no task switch (at 50 Hz on a shared core, about a
-    fifth of what reading the socket costs). Text messages are ignored, as the telemetry channel
-    always did; pings, pongs and the close go the ordinary way."""
-
-    def __init__(self, protocol, *, on_message: Callable[[bytes], None], **kwargs) -> None:
-        super().__init__(protocol, **kwargs)
-        self._on_message = on_message
-        self._parts: list[bytes] | None = None  # the fragments of a message being received
-        self._binary = False
-
-    def process_event(self, event) -> None:
-        if self.response is None or not isinstance(event, Frame) or event.opcode not in DATA_OPCODES:
-            super().process_event(event)  # the handshake's response, control frames
-            return
-        if event.opcode is not Opcode.CONT:
-            self._parts, self._binary = [], event.opcode is Opcode.BINARY
-        if self._parts is None:  # a continuation without a start (the protocol refuses those)
-            return
-        self._parts.append(bytes(event.data))
-        if not event.fin:
-            return
-        parts, self._parts = self._parts, None
-        if self._binary:
-            self._on_message(parts[0] if len(parts) == 1 else b"".join(parts))
-
-
-_FAST_TELEMETRY = callable(getattr(ClientConnection, "process_event", None))
-"""Whether this websockets has the connection hook ``_TelemetryConnection`` overrides (13 and
-later do); without it the telemetry channel reads with ``async for`` as before."""
 
 
 class CommunicationRejected(TeleprogError):
@@ -159,10 +133,21 @@ class ChannelHealth:
     session_id: str | None
     restarts: int
     telemetry_frames: int = 0
+    door: str | None = None
+    """Why the robot refuses this console's connections (no or another credential), until one is let in."""
     """Telemetry frames received and decoded since the client started (every connection)."""
 
 
-class RobotClient:
+@dataclass(frozen=True)
+class RobotAccount:
+    """The robot's first welcome to this client and the status reports that came after it by the
+    time a listener asked (``RobotClient.on_account``)."""
+
+    welcome: Welcome
+    reports: tuple[StatusReport, ...]
+
+
+class RobotClient(TelemetryChannel):
     """Command and telemetry channels of one robot, with reconnects and exactly-once submission."""
 
     def __init__(
@@ -172,9 +157,15 @@ class RobotClient:
         reconnect_delay: float = 0.2,
         silence_limit_s: float = DEFAULT_SILENCE_LIMIT_S,
         reconnect_silence_s: float | None = None,
+        credential: str | None = None,
+        kept_identity: bool = False,
     ) -> None:
         self.url = url.rstrip("/")
-        self.sender = CommandSender(client_id or f"console-{uuid.uuid4().hex[:12]}")
+        # presented on both channels, never logged; None: TELEPROG_ROBOT_CREDENTIAL's, if set
+        self._headers = door_keys.headers(credential if credential is not None else os.environ.get(door_keys.ENV_VAR))
+        self.door: str | None = None
+        # kept_identity: client_id came from an earlier process (nothing leaves before the first welcome here)
+        self.sender = CommandSender(client_id or f"console-{uuid.uuid4().hex[:12]}", kept_identity=kept_identity and bool(client_id))
         self.reconnect_delay = reconnect_delay
         self.telemetry: TelemetryFrame | None = None
         self.reports: list[StatusReport] = []
@@ -203,6 +194,9 @@ class RobotClient:
         self._telemetry_listeners: list[tuple[Callable[[TelemetryFrame], None], Callable[[TelemetryFrame], bool] | None]] = []
         self.telemetry_frames = 0  # received and decoded, every connection
         self._restart_listeners: list[Callable[[SessionRestart], None]] = []
+        self._account_listeners: list[Callable[[RobotAccount], None]] = []
+        self._account: Welcome | None = None  # the first welcome
+        self._account_lock = threading.Lock()  # listeners register on another thread than the loop's
         self._tasks: list[asyncio.Task] = []
         self._closing = False
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -240,12 +234,16 @@ class RobotClient:
     def on_report(self, listener: Callable[[StatusReport], None]) -> None:
         self._report_listeners.append(listener)
 
-    def on_telemetry(self, listener: Callable[[TelemetryFrame], None],
-                     gate: Callable[[TelemetryFrame], bool] | None = None) -> None:
-        """``listener(frame)`` on the listeners' thread, in arrival order; with ``gate``, only for
-        frames ``gate(frame)`` is true for. The gate runs on the loop as each frame arrives: plain
-        reads and assignments only (no lock, no I/O); one that raises is counted, the frame passes."""
-        self._telemetry_listeners.append((listener, gate))
+    def on_account(self, listener: Callable[[RobotAccount], None]) -> None:
+        """``listener(account)`` once, on the listeners' thread: the robot's first welcome to this
+        client (what it holds and has run when this console arrived: a console that started again
+        shows it) and the reports that came since. At that welcome if it has not come yet (the
+        reports then follow through ``on_report``); at once if it has (the console's session
+        attaches after the early connection of ``teleprog up``)."""
+        with self._account_lock:
+            self._account_listeners.append(listener)
+            if self._account is not None:
+                self._delivery.post(listener, RobotAccount(self._account, tuple(self.reports)))
 
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None:
         """``listener(restart)`` runs when a welcome comes from a new robot session."""
@@ -271,7 +269,7 @@ class RobotClient:
             silence_limit_s=self.command_watch.limit, telemetry=telemetry, telemetry_ago_s=tele.age(now),
             halted=self.halted, errors=self.errors, last_error=self.last_error, refused=self.refused,
             buffer_full=self.buffer_full, session_id=self.sender.session_id, restarts=len(self.restarts),
-            telemetry_frames=self.telemetry_frames,
+            telemetry_frames=self.telemetry_frames, door=self.door,
         )
 
     def _record_error(self, where: str, exc: BaseException) -> None:
@@ -349,9 +347,11 @@ class RobotClient:
             helpers: list[asyncio.Task] = []
             try:
                 async with connect(
-                    f"{self.url}/command", max_size=MAX_MESSAGE_BYTES, compression=None, open_timeout=5, close_timeout=1
+                    f"{self.url}/command", max_size=MAX_MESSAGE_BYTES, compression=None, open_timeout=5, close_timeout=1,
+                    additional_headers=self._headers,
                 ) as ws:
                     self._ws = ws
+                    self._door_open()
                     self.command_watch.reset()
                     hello_at = time.monotonic()
                     await ws.send(encode_message(self.sender.hello()))
@@ -369,7 +369,15 @@ class RobotClient:
                         except Exception as exc:  # noqa: BLE001 - no message may end the channel
                             self._record_error("handling a message from the robot", exc)
                     said_down = False
-            except (OSError, ConnectionClosed, InvalidHandshake, asyncio.TimeoutError) as exc:
+            except InvalidStatus as exc:  # the robot refused the upgrade (its door)
+                self._door_closed(exc.response.status_code, exc.response.body)
+            except ConnectionClosed as exc:
+                if exc.rcvd is not None and exc.rcvd.code == REFUSED_CLOSE_CODE:  # a link relaying the robot's refusal
+                    self._door_closed(None, exc.rcvd.reason.encode())
+                elif not self._closing and not said_down:
+                    log.info("command channel to %s down: %s (retrying quietly)", self.url, exc)
+                    said_down = True
+            except (OSError, InvalidHandshake, asyncio.TimeoutError) as exc:
                 if not self._closing and not said_down:
                     log.info("command channel to %s down: %s (retrying quietly)", self.url, exc or type(exc).__name__)
                     said_down = True
@@ -390,16 +398,39 @@ class RobotClient:
                 self.connected.clear()
             await asyncio.sleep(self.reconnect_delay)
 
+    def _door_closed(self, status: int | None, body: bytes | None) -> None:
+        """The robot refused this console's connection: why, kept for the link view (logged once per reason)."""
+        text = (body or b"").decode("utf-8", "replace").strip().splitlines()
+        reason = (text[0] if text else f"HTTP {status}")[:300]
+        if reason != self.door:
+            log.error("the robot at %s refuses this console: %s", self.url, reason)
+        self.door = reason
+
+    def _door_open(self) -> None:
+        if self.door is not None:
+            log.info("the robot at %s lets this console in", self.url)
+        self.door = None
+
     async def _take(self, raw: str | bytes, hello_at: float) -> None:
         """One message from the robot."""
-        msg = decode_message(raw, allowed=ROBOT_TYPES)
+        msg = decode_message(raw, allowed=ROBOT_TYPES, max_bytes=MAX_ROBOT_MESSAGE_BYTES)
         if isinstance(msg, Welcome):
             # the round trip alone: less the time the hello waited for a robot still starting
             self.handshake_s = max(0.0, time.monotonic() - hello_at - msg.held_s)
             async with self._lock:
+                first = self.sender.session_id is None
                 restart = self.sender.begin_session(msg)
                 if restart is not None:
                     self._end_session(restart)
+                if (renumbered := self.sender.renumbered) is not None:  # the robot knew this identity
+                    self.sender.renumbered = None
+                    self._answers = {renumbered.comms.get(c, c): f for c, f in self._answers.items()}
+                    self._acks = {renumbered.commands.get(c, c): f for c, f in self._acks.items()}
+                if first:  # what the robot holds and ran, before anything it replays
+                    with self._account_lock:
+                        self._account = msg
+                        for listener in self._account_listeners:
+                            self._delivery.post(listener, RobotAccount(msg, ()))
                 self.halted = msg.halted
                 self.command_watch.interval = msg.heartbeat_s
                 await self._send_all(self.sender.on_welcome(msg))
@@ -464,6 +495,8 @@ class RobotClient:
                 return
 
     def _dispatch(self, msg: BaseModel) -> None:
+        if isinstance(msg, (Accepted, Rejected)) and msg.comm_id is not None and msg.comm_id < self.sender.first_comm:
+            return  # an answer to an earlier process under this identity, replayed
         before = self.sender.last_report_seq
         cmd = self.sender.unacked(msg.command_id) if isinstance(msg, RecoveryAck) else None
         self.sender.on_message(msg)
@@ -491,57 +524,6 @@ class RobotClient:
             future = self._acks.get(msg.command_id)
             if future is not None and not future.done():
                 future.set_result(msg)
-
-    # -- the telemetry channel ------------------------------------------------------------------
-    async def _telemetry_loop(self) -> None:
-        fast = {"create_connection": functools.partial(_TelemetryConnection, on_message=self._telemetry_message)} if _FAST_TELEMETRY else {}
-        while not self._closing:
-            watchdog: asyncio.Task | None = None
-            try:
-                async with connect(
-                    f"{self.url}/telemetry", max_size=MAX_MESSAGE_BYTES, compression=None, open_timeout=5, close_timeout=1,
-                    **fast,
-                ) as ws:
-                    watchdog = asyncio.create_task(self._close_if_silent(ws, self.telemetry_watch, "telemetry"))
-                    if fast:
-                        await ws.wait_closed()  # the frames go to _telemetry_message as they are parsed
-                    else:
-                        async for raw in ws:
-                            self._telemetry_message(raw)
-            except (OSError, ConnectionClosed, InvalidHandshake, asyncio.TimeoutError):
-                pass
-            except InvalidURI:
-                return
-            except Exception as exc:  # noqa: BLE001 - last resort: the loop itself must live on
-                self._record_error("telemetry channel", exc)
-            finally:
-                if watchdog is not None:
-                    watchdog.cancel()
-            await asyncio.sleep(self.reconnect_delay)
-
-    def _telemetry_message(self, raw: str | bytes) -> None:
-        """One telemetry message, on the loop (from the connection's data callback): decoded, kept
-        as the newest, posted to each listener its gate lets through. Nothing here may raise."""
-        self.telemetry_watch.heard(self.now())
-        try:
-            frame = decode_frame(raw) if isinstance(raw, bytes) else None
-        except TelemetryError as exc:
-            log.warning("bad telemetry frame: %s", exc)
-            return
-        except Exception as exc:  # noqa: BLE001 - no frame may end the channel
-            self._record_error("handling a telemetry frame", exc)
-            return
-        if frame is None:  # a text message: not telemetry
-            return
-        self.telemetry = frame
-        self.telemetry_frames += 1
-        for listener, gate in self._telemetry_listeners:
-            try:
-                if gate is not None and not gate(frame):
-                    continue
-            except Exception as exc:  # noqa: BLE001 - a failing gate lets the frame through
-                self._record_error("a telemetry gate", exc)
-            self._delivery.post(listener, frame, droppable=True)
 
     # -- the listeners' thread ------------------------------------------------------------------
     def _deliver_report(self, msg: StatusReport) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, SecretStr
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from shared.paths import DEFAULT_CELL, PROJECT_DIR, USER_CACHE_DIR, CacheDir
@@ -25,6 +25,19 @@ class ConsoleSettings(BaseSettings):
     )
     robot_url: str | None = Field(
         None, description="ws:// base URL of a robot or link to use (teleprog up starts its own when unset)"
+    )
+    robot_credential: SecretStr | None = Field(
+        None, description="the credential of the robot at robot_url (TELEPROG_ROBOT_CREDENTIAL); "
+        "the robot teleprog up starts gets this one, or a new one when unset",
+    )
+    robot_credential_file: Path | None = Field(
+        None, description="a file, readable by its owner alone, with the robot's credential (when none is set)",
+    )
+    identity_file: str = Field(
+        ".console-identity", description="file in record_dir keeping this console's identity with its robot across restarts",
+    )
+    strict_editing: bool = Field(
+        False, description="the editor keeps the thesis's editing rules (§4.3.6) instead of free editing (--strict-editing)",
     )
     no_robot: bool = Field(False, description="console only: no robot, no link (nothing can be submitted)")
     delay_ms: float = Field(3000.0, ge=0.0, description="delay of the started link, each way, ms")

@@ -3,17 +3,35 @@
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-# every console a test starts (in this process or as a child) records into a folder of its own,
-# never into the project's recordings/
-os.environ.setdefault("TELEPROG_RECORD_DIR", tempfile.mkdtemp(prefix="teleprog-recordings-"))
+# the robot's credential (shared.wire.credential) for every robot, console and client the tests
+# start; tests of the robot's door start theirs without it or with another
+os.environ.setdefault("TELEPROG_ROBOT_CREDENTIAL", "tests-" + secrets.token_urlsafe(16))
 
 from support import CHROMIUM_ARGS, RunningConsole, screenshot_if_failed, start_console, stop_process
+
+
+@pytest.fixture(scope="session", autouse=True)
+def recordings_folder(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """Every console a test starts (in this process or as a child) records into a folder of the
+    session's pytest temporary directory, never into the project's recordings/ and never into a
+    folder left behind in /tmp: pytest removes it with its old temporary directories. A folder
+    set from outside (``TELEPROG_RECORD_DIR``) is kept."""
+    outside = os.environ.get("TELEPROG_RECORD_DIR")
+    if outside:
+        yield Path(outside)
+        return
+    folder = tmp_path_factory.mktemp("recordings", numbered=False)
+    os.environ["TELEPROG_RECORD_DIR"] = str(folder)
+    try:
+        yield folder
+    finally:
+        os.environ.pop("TELEPROG_RECORD_DIR", None)
 
 
 @pytest.fixture

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -16,6 +17,8 @@ from typing import TypeVar
 import httpx
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect as connect_ws
+
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 ARTIFACTS = PROJECT_DIR / "test-artifacts"
@@ -35,6 +38,14 @@ CHROMIUM_ARGS = [
 T = TypeVar("T")
 
 
+def robot_headers() -> dict[str, str]:
+    """The upgrade headers that present the tests' robot credential (conftest sets it for every
+    process the tests start; ``shared.wire.credential``)."""
+    from shared.wire.credential import ENV_VAR, headers
+
+    return headers(os.environ[ENV_VAR])
+
+
 def screenshot_if_failed(request, page) -> None:
     """After a test (``request`` is its fixture request), keep a screenshot of the Playwright
     ``page`` in ARTIFACTS when the test's call failed (see conftest's report hook)."""
@@ -42,6 +53,27 @@ def screenshot_if_failed(request, page) -> None:
     if report is not None and report.failed:
         ARTIFACTS.mkdir(exist_ok=True)
         page.screenshot(path=str(ARTIFACTS / f"{request.node.name}.png"))
+
+
+SILENCE_CONTRACT_S = HEARTBEAT_INTERVAL_S + DEFAULT_SILENCE_LIMIT_S
+"""The silence contract (``shared.wire.liveness``): an end that has heard nothing for the heartbeat
+interval (0.2 s) plus the silence limit (1.0 s), 1.2 s, calls the other silent, and a robot that
+hears nothing that long from its console halts. Held to this figure exactly where the robot or the
+console reports the silence it measured on its own clock."""
+LOADED_MACHINE_MARGIN_S = 3.0
+"""What a test's own wall clock may add to a contract's figure when it can only time from outside
+(SIGSTOP, then polling): the polls' interval and HTTP round trips, and on a loaded 2-core machine
+(fresh-clone runs measured load 20-35) seconds of a process waiting for a core. Named once, so
+no test widens a contract on its own."""
+_SILENCE_REPORT = re.compile(r"no message from the console for (\d+(?:\.\d+)?) s")
+
+
+def reported_silence_s(halted: str) -> float:
+    """The silence (s, on the robot's servo clock, to its report's 0.1 s) a robot's silence halt
+    says it measured: ``no message from the console for 1.2 s (limit ...)``."""
+    m = _SILENCE_REPORT.search(halted or "")
+    assert m, f"not a silence halt: {halted!r}"
+    return float(m[1])
 
 
 def wait_for(predicate: Callable[[], T], timeout: float = 15.0, interval: float = 0.1, what: str = "condition") -> T:
@@ -108,19 +140,32 @@ def record_three_statements(console: RunningConsole) -> dict:
                     60, 0.1, "every statement final")
 
 
-def start_console(tmp_path: Path, *extra: str, timeout: float = 180.0) -> RunningConsole:
-    return start_served(tmp_path, "up", *extra, timeout=timeout)
+def child_env(env: dict[str, str | None] | None = None) -> dict[str, str]:
+    """The tests' environment for a child process, with ``env`` set on top (None: removed)."""
+    out = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    for key, value in (env or {}).items():
+        if value is None:
+            out.pop(key, None)
+        else:
+            out[key] = value
+    return out
 
 
-def start_served(tmp_path: Path, command: str, *extra: str, timeout: float = 180.0, name: str = "console") -> RunningConsole:
+def start_console(tmp_path: Path, *extra: str, timeout: float = 180.0, name: str = "console",
+                  env: dict[str, str | None] | None = None) -> RunningConsole:
+    return start_served(tmp_path, "up", *extra, timeout=timeout, name=name, env=env)
+
+
+def start_served(tmp_path: Path, command: str, *extra: str, timeout: float = 180.0, name: str = "console",
+                 env: dict[str, str | None] | None = None) -> RunningConsole:
     """``teleprog COMMAND --port P EXTRA...`` (a console: ``up``, ``replay``) as a process, once
-    its ``/api/health`` answers; its output goes to ``tmp_path/NAME.log``."""
+    its ``/api/health`` answers; its output goes to ``tmp_path/NAME.log``; ``env``: see ``child_env``."""
     port = free_port()
     log_path = tmp_path / f"{name}.log"
     log = log_path.open("w")
     proc = subprocess.Popen(
         [sys.executable, "-m", "server.cli", command, *extra, "--port", str(port)],
-        stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env=child_env(env),
     )
     try:
         wait_http(f"http://127.0.0.1:{port}/api/health", proc, timeout=timeout)
@@ -144,7 +189,9 @@ class ServerProcess:
     """A ``teleprog <command>`` server as a real process on a fixed port, so a test can kill it
     (SIGKILL: nothing said goodbye, whatever was in flight is gone) and start it again."""
 
-    def __init__(self, tmp_path: Path, command: str, *args: str, port: int | None = None, timeout: float = 120.0) -> None:
+    def __init__(self, tmp_path: Path, command: str, *args: str, port: int | None = None, timeout: float = 120.0,
+                 env: dict[str, str | None] | None = None) -> None:
+        self.env = env
         self.port = port or free_port()
         self.command = command
         self.args = args
@@ -157,7 +204,7 @@ class ServerProcess:
         verbose = ["-v"] if os.environ.get(f"{self.command.upper()}_VERBOSE") else []
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "server.cli", *verbose, self.command, "--port", str(self.port), *self.args],
-            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            stdout=log, stderr=subprocess.STDOUT, cwd=PROJECT_DIR, env=child_env(self.env),
         )
         try:
             wait_http(f"http://127.0.0.1:{self.port}/health", self.proc, timeout=self.timeout)

@@ -48,6 +48,9 @@ def sent_line(item: SentView, now: float) -> str:
         timing = f", running {now - item.started_at:.1f} s"
     elif item.status not in FINAL_SENT:
         timing = f", sent {now - item.submitted_at:.1f} s ago"
+    if item.before:  # the robot's account when this console connected: held means Resume runs it
+        mark = "**held**" if item.status is SentStatus.RECEIVED else STATUS_MARK[item.status]
+        return f"{number} `{item.text}`: {mark}{timing} (sent before this console started)"
     reason = f": {item.reason}" if item.reason else ""
     return f"{number} `{item.text}`: {STATUS_MARK[item.status]}{timing}{reason}"
 

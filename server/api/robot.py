@@ -63,8 +63,9 @@ def abort(session: SessionDep, client: ClientDep) -> LinkView:
 
 
 @router.get("/link", response_model=LinkView)
-def link(session: SessionDep) -> LinkView:
-    return session.link.view()
+def link(session: SessionDep, client: ClientDep) -> LinkView:
+    """The link. ``url``, the robot's address, only to the holder of control (its token); never the credential."""
+    return session.link.view(address=session.control.holds(client))
 
 
 @router.get("/remote", response_model=RemoteArmView)

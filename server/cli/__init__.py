@@ -12,6 +12,7 @@ import argparse
 import importlib
 import json
 import logging
+import re
 import pkgutil
 import sys
 from collections.abc import Callable, Sequence
@@ -48,12 +49,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _HideCredentials(logging.Filter):
+    """No log line shows a credential: websockets logs a handshake's headers at debug level (``-v``),
+    the robot's ``Authorization: Bearer ...`` among them (``shared.wire.credential``)."""
+
+    _BEARER = re.compile(r"(?i)(bearer\s+)\S+")
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if "earer" in message:
+            record.msg, record.args = self._BEARER.sub(r"\1[hidden]", message), ()
+        return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(_HideCredentials())
     try:
         return int(args.handler(args))
     except TeleprogError as exc:

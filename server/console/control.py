@@ -108,6 +108,11 @@ class ControlLock:
         self._ctx.bus.emit([ControlChanged(control=view)])
         return view
 
+    def holds(self, client: Caller | str | None) -> bool:
+        """Whether the caller holds control (presents the holder's token); nobody does while it is free."""
+        with self._ctx.lock:
+            return self._holder is not None and self._presents_token(as_caller(client))
+
     def check(self, client: Caller | str | None) -> None:
         """Refuse a call that changes state unless nobody holds control or the caller presents
         the holder's token."""

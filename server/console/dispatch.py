@@ -66,6 +66,7 @@ from server.console.events import (
     RangeSubmitted,
     SentChanged,
 )
+from server.console.robot_account import take_account
 from server.console.robot_seam import RobotLink
 from server.console.statement_checks import checked_statement, statement_refusal, statement_text
 from server.console.views import Caller, SentListView, SentView
@@ -113,6 +114,7 @@ class Sent:
     finished_at: float | None = None
     robot_started_at: float | None = None  # the robot's clock (StatusReport.robot_time)
     robot_finished_at: float | None = None
+    before: bool = False  # sent before this console started: the robot's account (server.console.robot_account)
 
     @property
     def final(self) -> bool:
@@ -125,7 +127,7 @@ class Sent:
             status=self.status, reason=self.reason, submitted_at=self.submitted_at, answered_at=self.answered_at,
             started_at=self.started_at, finished_at=self.finished_at, run_s=run,
             robot_run_s=None if self.robot_finished_at is None or self.robot_started_at is None
-            else self.robot_finished_at - self.robot_started_at,
+            else self.robot_finished_at - self.robot_started_at, before=self.before,
         )
 
 
@@ -145,6 +147,7 @@ class Dispatch:
         self._early: dict[int, list[StatusReport]] = {}
         self._comms = 0
         self._session_from = 0  # the sent list's first statement of the robot's current session
+        self.history_below = 0  # reports of unknown numbers below this are history (robot_account)
         self.round_trips: list[float] = []
 
     # -- the seam ------------------------------------------------------------------------------
@@ -155,6 +158,7 @@ class Dispatch:
         robot.on_report(self.on_report)
         robot.on_telemetry(self.remote.take_frame, gate=self.remote.gate_frame)
         robot.on_restart(self.on_robot_restart)
+        robot.on_account(lambda welcome: take_account(self, welcome))
 
     @property
     def connected(self) -> bool:
@@ -470,7 +474,8 @@ class Dispatch:
         with self._ctx.lock:
             s = self._by_number.get(report.number)
             if s is None:
-                self._early.setdefault(report.number, []).append(report)
+                if report.number >= self.history_below:  # else: before this console, not in the account
+                    self._early.setdefault(report.number, []).append(report)
                 return
             self._apply_report(s, report)
             final = s.final
@@ -491,6 +496,7 @@ class Dispatch:
             self._session_from = len(self.sent)  # the new session starts in position mode
             self._by_number.clear()
             self._early.clear()
+            self.history_below = 0
         self.mark_unknown(numbered, restart.describe())
         self._ctx.bus.emit([Notice(level="error", message=restart.describe()), LinkChanged(link=self.link.view())])
 

@@ -24,7 +24,9 @@ log = logging.getLogger(__name__)
 def link_problems(h, children: dict[str, str]) -> list[str]:
     """What is wrong with the link, one line each (``h``: the client's ``ChannelHealth``)."""
     out = [f"{name} {what}" for name, what in children.items() if not what.startswith("running")]
-    if h.command == "down":
+    if h.door:
+        out.append(f"the robot refuses this console: {h.door}")
+    elif h.command == "down":
         out.append("link down")
     elif h.command == "silent":
         out.append(f"robot silent for {h.heard_ago_s:.1f} s")
@@ -80,7 +82,9 @@ class LinkStatus:
                 return None
             return self._ctx.clock() - newest[1] + (rtt / 2 if rtt is not None else 0.0)
 
-    def view(self) -> LinkView:
+    def view(self, *, address: bool = False) -> LinkView:
+        """The link now. The robot's address only with ``address`` (``GET /api/link`` to the
+        holder of control): everything published, and every other caller, gets ``url`` None."""
         d = self._dispatch
         with self._ctx.lock:
             robot, url = d.robot, d.url
@@ -89,10 +93,12 @@ class LinkStatus:
             frame, at = newest if newest is not None else (None, None)
             ago = self._ctx.clock() - at if at is not None else None
             recovery = list(self.recovery.pending.values()) if self.recovery is not None else []
+        configured = url is not None
+        url = url if address else None
         delay = rtt / 2 if rtt is not None else None
         children = self._children_status()
         if robot is None:
-            return LinkView(configured=url is not None, url=url, children=children,
+            return LinkView(configured=configured, url=url, children=children,
                             problems=[f"{name} {what}" for name, what in children.items() if not what.startswith("running")])
         h = robot.health()
         fresh = frame is not None and h.telemetry == "live"
@@ -105,7 +111,7 @@ class LinkStatus:
             recovery_pending=recovery, status=h.command, heard_ago_s=h.heard_ago_s, silence_limit_s=h.silence_limit_s,
             telemetry=h.telemetry, halted=h.halted, errors=h.errors, last_error=h.last_error, refused=h.refused,
             buffer_full=h.buffer_full, robot_session=h.session_id, robot_restarts=h.restarts, children=children,
-            problems=link_problems(h, children), telemetry_frames=h.telemetry_frames,
+            problems=link_problems(h, children), telemetry_frames=h.telemetry_frames, door=h.door,
         )
 
     def tick(self) -> None:

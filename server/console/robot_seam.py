@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from typing import Protocol, runtime_checkable
 
-from server.robot_client import ChannelHealth
+from server.robot_client import ChannelHealth, RobotAccount
 from shared.language.statements import Statement
 from shared.wire.messages import RecoveryAck, StatusReport
 from shared.wire.session import SessionRestart
@@ -42,6 +42,9 @@ class RobotLink(Protocol):
         is queued: it must not wait (see ``RobotClient.on_telemetry``)."""
 
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None: ...
+
+    def on_account(self, listener: Callable[[RobotAccount], None]) -> None:
+        """``listener(account)`` once: the robot's first welcome (what it holds and ran) and the reports since."""
 
     async def submit(self, statements: Iterable[Statement], timeout: float | None = None) -> tuple[int, ...]: ...
 

@@ -18,6 +18,9 @@ Closing and faults, so that each end notices what a real line would show it:
 * a fault of the core (a lost message): the line is down, so every open connection on it (both
   channels) is closed with 1011 ``link fault`` and new connections are refused (HTTP 503) until
   the outage ends;
+* the robot refuses the connection (HTTP 401: no or another credential, which the relay passes
+  through from the console's upgrade request unchanged and never logs): the console side is
+  closed with 1008 and the robot's reason, counted as ``robot_refused``;
 * an error inside the relay closes that connection's two sides with 1011 ``link error`` rather than
   leaving it open and silent.
 
@@ -52,10 +55,12 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from websockets.asyncio.client import connect
 from websockets.asyncio.server import serve
+from websockets.exceptions import InvalidStatus
 
 from shared.errors import InputError
 from shared.startup_trace import mark
 from shared.link.core import Delivery, Direction, LinkCore, LinkFault, LinkParams
+from shared.wire import credential
 
 log = logging.getLogger("teleprog.link")
 
@@ -105,6 +110,7 @@ class LinkStats:
     faults: int = 0
     robot_losses: int = 0
     robot_unreachable: int = 0
+    robot_refused: int = 0
     lateness_s: deque = field(default_factory=lambda: deque(maxlen=10_000))
     """How long after its due time each recent delivery was handed to the socket."""
 
@@ -113,6 +119,7 @@ class LinkStats:
         return {
             "connections": self.connections, "open": self.open, "delivered": dict(self.delivered),
             "faults": self.faults, "robot_losses": self.robot_losses, "robot_unreachable": self.robot_unreachable,
+            "robot_refused": self.robot_refused,
             "lateness_ms": {"p50": round(float(np.percentile(late, 50)), 3), "p99": round(float(np.percentile(late, 99)), 3),
                             "max": round(float(late.max()), 3), "n": len(self.lateness_s)},
         }
@@ -277,9 +284,21 @@ class LinkRelay:
         # the console's messages enter the line from the moment they arrive, even while the robot
         # side is still being connected: their delay runs from their arrival
         up_reader = asyncio.create_task(pipe.read(console, Direction.UP))
+        # the robot's credential passes through as the console presented it (never logged)
+        door = console.request.headers.get(credential.HEADER)
         try:
             robot = await connect(url, compression=None, max_size=MAX_MESSAGE_BYTES, max_queue=None,
-                                  ping_interval=None, open_timeout=5, close_timeout=2)
+                                  ping_interval=None, open_timeout=5, close_timeout=2,
+                                  additional_headers={credential.HEADER: door} if door is not None else None)
+        except InvalidStatus as exc:  # the robot refused the upgrade: its reason goes back to the console
+            self.stats.robot_refused += 1
+            reason = _refusal_reason(exc)
+            log.warning("link %s: the robot refused the connection: %s", path, reason)
+            pipe.tearing_down = True
+            up_reader.cancel()
+            await asyncio.gather(up_reader, return_exceptions=True)
+            await console.close(REFUSED_CLOSE_CODE, reason)
+            return
         except Exception as exc:
             self.stats.robot_unreachable += 1
             log.warning("link %s: robot unreachable at %s: %s", path, url, exc)
@@ -305,6 +324,19 @@ class LinkRelay:
             await asyncio.gather(console.close(), robot.close(), return_exceptions=True)
             self.stats.open -= 1
             log.info("link %s: connection closed", path)
+
+
+REFUSED_CLOSE_CODE = 1008
+"""Close code (policy violation) of a console connection the robot refused; the reason follows."""
+
+
+def _refusal_reason(exc: InvalidStatus) -> str:
+    """The robot's one-line reason for refusing an upgrade, cut to what a close frame carries."""
+    body = exc.response.body or b""
+    text = body.decode("utf-8", "replace").strip().splitlines()[0] if body.strip() else ""
+    reason = f"robot refused: {text}" if text else f"robot refused: HTTP {exc.response.status_code}"
+    data = reason.encode()[:123]  # a close reason is at most 123 bytes
+    return data.decode("utf-8", "ignore")
 
 
 class _SchedAttr(ctypes.Structure):

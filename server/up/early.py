@@ -42,8 +42,22 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
         no_robot=True if get("no_robot") else None, robot_port=get("robot_port"), link_port=get("link_port"),
         sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
         record=False if get("no_record") else None, record_dir=get("record"),
-        fault_injection=True if get("fault_injection") else None,
+        fault_injection=True if get("fault_injection") else None, robot_credential_file=get("robot_credential_file"),
+        strict_editing=True if get("strict_editing") else None,
     )
+
+
+def robot_credential(settings: ConsoleSettings, *, make: bool) -> str | None:
+    """The credential the console presents to its robot: the one set (``TELEPROG_ROBOT_CREDENTIAL``),
+    else the one in ``robot_credential_file``, else (``make``: the robot ``teleprog up`` starts) a
+    new one; None when there is none to present (the robot will refuse and say why)."""
+    from shared.wire.credential import checked, new_credential, read_credential_file
+
+    if settings.robot_credential is not None:
+        return checked(settings.robot_credential.get_secret_value(), "TELEPROG_ROBOT_CREDENTIAL")
+    if settings.robot_credential_file is not None:
+        return read_credential_file(settings.robot_credential_file.expanduser())
+    return new_credential() if make else None
 
 
 def new_loop() -> asyncio.AbstractEventLoop:
@@ -60,8 +74,9 @@ def new_loop() -> asyncio.AbstractEventLoop:
 class EarlyRobot:
     """The robot client on its own thread and loop, connecting as soon as ``children`` listen."""
 
-    def __init__(self, url: str, settings: ConsoleSettings, children: list[Child]) -> None:
+    def __init__(self, url: str, settings: ConsoleSettings, children: list[Child], credential: str | None = None) -> None:
         self.url = url
+        self._credential = credential  # presented to the robot; never logged
         self.settings = settings
         self.children = children
         self.loop = new_loop()
@@ -131,7 +146,11 @@ class EarlyRobot:
             self._children_ready.set()
         mark("console", "children listening")
 
-        client = self.client = RobotClient(self.url, silence_limit_s=self.settings.silence_limit_s)
+        from server.up.identity import console_identity
+
+        identity = console_identity(self.settings.record_dir / self.settings.identity_file)
+        client = self.client = RobotClient(self.url, client_id=identity, silence_limit_s=self.settings.silence_limit_s,
+                                           credential=self._credential, kept_identity=True)
         self._client_made.set()
         connect = asyncio.create_task(self._connect(client), name="robot-connect")
         try:
@@ -169,10 +188,12 @@ def start_early(args: argparse.Namespace) -> EarlyStart:
     if settings.sedimentation or settings.no_robot:
         return EarlyStart(settings)
     if settings.robot_url:
-        return EarlyStart(settings, robot=EarlyRobot(settings.robot_url, settings, []).start())
+        secret = robot_credential(settings, make=False)
+        return EarlyStart(settings, robot=EarlyRobot(settings.robot_url, settings, [], secret).start())
+    secret = robot_credential(settings, make=True)  # the robot started here answers to this console alone
     robot, link, link_url = spawn_robot_and_link(
         cell=settings.cell, robot_port=settings.robot_port, link_port=settings.link_port, delay_ms=settings.delay_ms,
-        cache_dir=settings.cache_dir,
+        credential=secret, cache_dir=settings.cache_dir,
     )
     mark("console", "children spawned")
     try:
@@ -187,4 +208,4 @@ def start_early(args: argparse.Namespace) -> EarlyStart:
     # retries to log while they start (a child that fails says why, and nothing is served)
     print("teleprog up: waiting for the telerobot and the link to start ...", flush=True)
     settings = settings.model_copy(update={"robot_url": link_url})
-    return EarlyStart(settings, [robot, link], EarlyRobot(link_url, settings, [robot, link]).start())
+    return EarlyStart(settings, [robot, link], EarlyRobot(link_url, settings, [robot, link], secret).start())

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from shared.errors import InputError
+from shared.wire.credential import ENV_VAR
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +60,8 @@ class Child:
     name: str
     proc: subprocess.Popen
     args: list[str] = field(default_factory=list)
+    env: dict[str, str] = field(default_factory=dict, repr=False)
+    """Variables set for this child on top of the console's (the robot's credential): kept for a restart."""
     url: str = ""
     ready: dict = field(default_factory=dict)
     _lines: queue.Queue = field(default_factory=queue.Queue, repr=False)
@@ -84,14 +87,16 @@ class Child:
         return self
 
 
-def spawn_child(name: str, args: list[str]) -> Child:
-    """Start ``teleprog <args> --json`` without waiting (see ``Child.wait_ready``)."""
+def spawn_child(name: str, args: list[str], env: dict[str, str] | None = None) -> Child:
+    """Start ``teleprog <args> --json`` without waiting (see ``Child.wait_ready``); ``env``: variables
+    set on top of the console's (passed in the environment, which only the same user can read)."""
     cmd = [sys.executable, "-m", "server.cli", *args, "--json"]
+    env = dict(env or {})
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=None, text=True, cwd=PROJECT_DIR,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=_die_with_parent if os.name == "posix" else None,
+        env={**os.environ, "PYTHONUNBUFFERED": "1", **env}, preexec_fn=_die_with_parent if os.name == "posix" else None,
     )
-    child = Child(name, proc, list(args))
+    child = Child(name, proc, list(args), env)
 
     def drain() -> None:
         assert proc.stdout is not None
@@ -120,18 +125,19 @@ def stop_child(child: Child, timeout: float = 10.0) -> None:
 
 
 def spawn_robot_and_link(
-    *, cell: Path, robot_port: int, link_port: int, delay_ms: float, cache_dir: Path | None = None
+    *, cell: Path, robot_port: int, link_port: int, delay_ms: float, credential: str, cache_dir: Path | None = None
 ) -> tuple[Child, Child, str]:
     """Start the telerobot and the link relaying to it at once, without waiting (the link reaches
     the robot only when a console joins, and ``teleprog up`` connects once both listen);
     returns both and the link's URL for the console. Ports 0 are chosen free here. The caller
     has loaded ``cell``: the robot listens before it loads it (``--listen-first``). ``cache_dir``:
-    the robot's collision-model cache (None: none)."""
+    the robot's collision-model cache (None: none). ``credential``: what the robot will require of
+    its consoles, handed to it in its environment (the link passes it through; it needs none)."""
     robot_port = robot_port or free_port()
     link_port = link_port or free_port()
     robot = spawn_child("telerobot", [
         "robot", "--port", str(robot_port), "--cell", str(cell), "--listen-first", "--cache-dir", str(cache_dir or "none"),
-    ])
+    ], env={ENV_VAR: credential})
     link = spawn_child(
         "link", ["link", "--port", str(link_port), "--robot", f"ws://127.0.0.1:{robot_port}", "--delay-ms", repr(float(delay_ms))]
     )
@@ -196,7 +202,7 @@ class ChildWatch:
             if self._stop.is_set():
                 return
             self._status[child.name] = f"exited {code}, restarting"
-            new = self.children[i] = spawn_child(child.name, child.args)
+            new = self.children[i] = spawn_child(child.name, child.args, child.env)
         try:
             new.wait_ready(self.start_timeout)
         except InputError as exc:  # it exited or never listened: the next poll tries again

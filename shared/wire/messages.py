@@ -72,12 +72,18 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
+from shared.language.statements import Statement
 from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S, HEARTBEAT_INTERVAL_S
 from shared.wire.strict_json import StrictJSONError, loads_strict
 
 PROTOCOL_VERSION = 1
 MAX_MESSAGE_BYTES = 1 << 20
-"""Largest JSON text message accepted (1 MiB); an answer listing 10,000 numbers is about 60 kB."""
+"""Largest JSON text message the robot accepts (1 MiB); an answer listing 10,000 numbers is about 60 kB."""
+MAX_ROBOT_MESSAGE_BYTES = 4 << 20
+"""Largest JSON text message a console accepts from its robot (4 MiB: a welcome's account of a full
+buffer); the robot keeps its welcome under ``WELCOME_BUDGET_BYTES``."""
+WELCOME_BUDGET_BYTES = 3 << 20
+"""What a welcome's account (``holds`` then ``ran``) may take; past it the lists are cut (``holds_total`` says how many are held)."""
 
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]
@@ -159,20 +165,32 @@ class Hello(_Model):
     last_answered_comm: int = Field(0, ge=0, description="newest communication the client has an answer for")
     last_report_seq: int = Field(0, ge=0, description="newest status report the client has seen")
     last_acked_command: int = Field(0, ge=0, description="newest recovery command acknowledged")
+    new_process: bool = Field(
+        False, description="a console process that kept its identity from an earlier one and has sent nothing "
+        "under it yet: the robot drops that identity's half-sent communication, and the client goes on from the "
+        "welcome's counters",
+    )
 
 
 MAX_HELD_LISTED = 5000
-"""Statements a welcome lists at most (the robot's buffer holds 5,000 by default)."""
+"""Statements a welcome lists at most as held (the robot's buffer holds 5,000 by default)."""
+MAX_RAN_LISTED = 1000
+"""Finished statements a welcome lists at most (the newest)."""
 MAX_HELD_TEXT = 200
 
 
 class HeldStatement(_Model):
-    """A statement the robot holds: running now, or queued behind it."""
+    """A statement the robot holds (running now, or queued behind it) or has finished, as a
+    welcome accounts for it: a console that starts again shows it before anybody resumes."""
 
     number: int = Field(ge=1, description="the robot's number of the statement")
     text: str = Field(max_length=MAX_HELD_TEXT, description="the statement in the language (cut at 200 characters)")
     running: bool = Field(False, description="the statement the robot is executing (or was, when it stopped)")
     client_id: str | None = Field(None, max_length=64, description="the client that sent it")
+    state: Literal["received", "running", "done", "failed", "skipped", "aborted"] = Field(
+        "received", description="its status now: received (queued), running, or the final one it reached",
+    )
+    statement: Statement | None = Field(None, description="the statement itself (for the console's sent list)")
 
 
 class Welcome(_Model):
@@ -199,6 +217,11 @@ class Welcome(_Model):
         description="what the robot holds now, running first, then queued in order (a restarted console shows them)",
     )
     holds_total: int = Field(0, ge=0, description="how many statements it holds (more than listed when the list is cut)")
+    ran: list[HeldStatement] = Field(
+        default_factory=list, max_length=MAX_RAN_LISTED,
+        description="the newest statements that reached a final status, oldest first (what a restarted console shows as run)",
+    )
+    numbered: int = Field(0, ge=0, description="the highest number the robot has given a statement (0: none yet)")
 
 
 class Heartbeat(_Model):
@@ -396,15 +419,16 @@ def encode_message(message: BaseModel) -> str:
     return message.model_dump_json(exclude_none=True)
 
 
-def decode_message(data: str | bytes, allowed: frozenset[str] | None = None) -> Message | Rejected:
+def decode_message(data: str | bytes, allowed: frozenset[str] | None = None,
+                   max_bytes: int = MAX_MESSAGE_BYTES) -> Message | Rejected:
     """Parse one text message; anything malformed becomes a ``Rejected`` (never an exception).
 
     The JSON must be strict (``shared.wire.strict_json``: no NaN, no repeated key). ``allowed``
     names the types this end takes from the other (``CLIENT_TYPES`` on the robot); any other
     type is refused as ``bad_message``.
     """
-    if len(data) > MAX_MESSAGE_BYTES:
-        return Rejected(reason=RejectReason.TOO_LARGE, detail=f"message of {len(data)} bytes; limit {MAX_MESSAGE_BYTES}")
+    if len(data) > max_bytes:
+        return Rejected(reason=RejectReason.TOO_LARGE, detail=f"message of {len(data)} bytes; limit {max_bytes}")
     try:
         obj = loads_strict(data)
     except StrictJSONError as exc:

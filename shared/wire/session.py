@@ -139,6 +139,8 @@ class CommandReceiver:
                      hello.client_id, hello.session_id, self.session_id)
             hello = hello.model_copy(update={"last_answered_comm": 0, "last_report_seq": 0, "last_acked_command": 0})
         client = self._clients.setdefault(hello.client_id, _ClientState())
+        if hello.new_process:
+            self._forget_dead_process(hello.client_id, client)
         self._client = hello.client_id
         step = ReceiverStep()
         step.replies.append(
@@ -154,6 +156,23 @@ class CommandReceiver:
         step.replies += [a for c, a in client.acks.items() if c > hello.last_acked_command]
         step.replies += self.reports[hello.last_report_seq :]
         return step
+
+    @staticmethod
+    def _forget_dead_process(client_id: str, client: _ClientState) -> None:
+        """A new process under a kept identity has sent nothing yet, and numbers on from the
+        welcome's counters (``CommandSender.adopt``): what the earlier process left beyond them
+        is forgotten, so none of the new ids reads as a repeat. That is its half-sent
+        communication (never numbered, never run) and the stops it had applied out of turn (ids
+        past ``last_applied_command``; the new process's own stop with such an id must apply)."""
+        ahead = [i for i in client.stops if i > client.last_applied_command]
+        if client.units or ahead:
+            log.info("hello of %s from a new process: dropping %d unit(s) of its unfinished communication %d "
+                     "and %d stop id(s) past %d", client_id, len(client.units), client.last_answered + 1, len(ahead),
+                     client.last_applied_command)
+        client.units = []
+        for i in ahead:
+            del client.stops[i]
+            client.acks.pop(i, None)
 
     # -- units ---------------------------------------------------------------------------------
 
@@ -295,9 +314,13 @@ class CommandSender:
     sent to the new robot (it may have run on the old one), and numbering starts again at 1.
     """
 
-    def __init__(self, client_id: str, per_unit: int = 100) -> None:
+    def __init__(self, client_id: str, per_unit: int = 100, kept_identity: bool = False) -> None:
         self.client_id = client_id
         self.per_unit = per_unit
+        self.kept_identity = kept_identity
+        """This process kept ``client_id`` from an earlier one (``server.up.identity``): until its
+        first welcome its hello says ``new_process`` and its caller sends nothing (no unit, no
+        command) but the hello; at that welcome its counters go on from the robot's (``adopt``)."""
         self.session_id: str | None = None
         self._fresh()
 
@@ -311,6 +334,9 @@ class CommandSender:
         self.last_report_seq = 0
         self._unacked: OrderedDict[int, Recovery] = OrderedDict()
         self._refusals: set[str] = set()
+        self.first_comm = 1  # below: an earlier process's under this identity (``adopt``)
+        self.first_command = 1
+        self.renumbered: Renumbered | None = None
 
     @property
     def last_answered_comm(self) -> int:
@@ -343,14 +369,21 @@ class CommandSender:
             last_answered_comm=self.last_answered_comm,
             last_report_seq=self.last_report_seq,
             last_acked_command=min(self._unacked) - 1 if self._unacked else self.next_command - 1,
+            new_process=self.kept_identity and self.session_id is None,
         )
 
     def begin_session(self, welcome: Welcome) -> SessionRestart | None:
         """Take the welcome's session; on a new one (the robot restarted), drop the old
-        session's books and return what it left unknown (None when the session is the same)."""
+        session's books and return what it left unknown (None when the session is the same).
+        With ``kept_identity``, the first welcome may come from a robot that knows the identity (a
+        console that started again and kept it): the counters go on from the robot's (``adopt``)."""
         old = self.session_id
         self.session_id = welcome.session_id
-        if old is None or old == welcome.session_id:
+        if old is None:
+            if self.kept_identity:
+                self.adopt(welcome)
+            return None
+        if old == welcome.session_id:
             return None
         numbered = set(self.statuses) | {n for a in self.answers.values() if isinstance(a, Accepted) for n in a.numbers}
         restart = SessionRestart(
@@ -360,6 +393,30 @@ class CommandSender:
         log.warning("%s", restart.describe())
         self._fresh()
         return restart
+
+    def adopt(self, welcome: Welcome) -> None:
+        """Go on from the counters a robot kept for this identity (an earlier process under the
+        same client id): what this sender numbered before its first welcome (nothing was sent yet)
+        is numbered again after the robot's last answered communication and applied command, and
+        ``renumbered`` says old -> new for the caller's books. Answers and acknowledgements the
+        robot replays for the earlier process are not this sender's (``on_message`` skips them)."""
+        comm_base, command_base = welcome.last_answered_comm, welcome.last_applied_command
+        self.first_comm, self.first_command = comm_base + 1, command_base + 1
+        if comm_base == 0 and command_base == 0:
+            return
+        comms = {old: comm_base + i for i, old in enumerate(self.outbox, start=1)}
+        commands = {old: command_base + i for i, old in enumerate(self._unacked, start=1)}
+        self.outbox = OrderedDict(
+            (comms[old], split_into_units(comms[old], [s for u in units for s in decode_unit(u).statements], self.per_unit))
+            for old, units in self.outbox.items()
+        )
+        self._unacked = OrderedDict((commands[old], cmd.model_copy(update={"command_id": commands[old]}))
+                                    for old, cmd in self._unacked.items())
+        self.next_comm = comm_base + len(comms) + 1
+        self.next_command = command_base + len(commands) + 1
+        self.renumbered = Renumbered(comms=comms, commands=commands)
+        log.info("robot session %s knows this identity: communications go on from %d, commands from %d",
+                 welcome.session_id, self.first_comm, self.first_command)
 
     def on_welcome(self, welcome: Welcome) -> list[bytes | Recovery]:
         """What to send again after ``welcome``: units the robot lacks, then unapplied commands."""
@@ -381,6 +438,8 @@ class CommandSender:
                 self._refusals.add(key)
                 log.warning("robot refused a unit or message: %s (%s)", msg.reason.value, msg.detail)
         elif isinstance(msg, (Accepted, Rejected)) and msg.comm_id is not None:
+            if msg.comm_id < self.first_comm:
+                return  # an answer to an earlier process under this identity (a replay)
             if msg.comm_id not in self.answers:
                 self.answers[msg.comm_id] = msg
             self.outbox.pop(msg.comm_id, None)
@@ -390,7 +449,8 @@ class CommandSender:
             self.last_report_seq = msg.report_seq
             self.statuses.setdefault(msg.number, []).append(msg.state)
         elif isinstance(msg, RecoveryAck):
-            self._unacked.pop(msg.command_id, None)
+            if msg.command_id >= self.first_command:  # not an earlier process's (a replay)
+                self._unacked.pop(msg.command_id, None)
 
     def final_state(self, number: int) -> StatementState | None:
         finals = [s for s in self.statuses.get(number, []) if s in FINAL_STATES]
@@ -400,6 +460,14 @@ class CommandSender:
     def idle(self) -> bool:
         """No communication waits for its answer and no command for its acknowledgement."""
         return not self.outbox and not self._unacked
+
+
+@dataclass(frozen=True)
+class Renumbered:
+    """What ``CommandSender.adopt`` numbered again: old -> new communication and command ids."""
+
+    comms: dict[int, int]
+    commands: dict[int, int]
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from shared.language.parser import parse_program
 from shared.language.statements import Move
 from shared.paths import ASSETS_DIR
 from shared.wire.messages import RobotState, StatementState
-from support import ServerProcess
+from support import ServerProcess, robot_headers
 
 PEG_TRANSFER = parse_program((ASSETS_DIR / "programs" / "peg_transfer.tp").read_text()).statements
 CELL = load_cell(DEFAULT_CELL)
@@ -153,7 +153,7 @@ async def _garbage(robot: ServerProcess):
 
     health_before = robot.health()
     replies = []
-    async with connect(f"ws://127.0.0.1:{robot.port}/command") as ws:
+    async with connect(f"ws://127.0.0.1:{robot.port}/command", additional_headers=robot_headers()) as ws:
         await ws.send(encode_message(CommandSender("fuzz").hello()))
         assert decode_message(await ws.recv()).type == "welcome"
         comm1 = encode_unit(1, 0, [Move(joints=(0.0,) * 6)], True)

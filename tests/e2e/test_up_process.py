@@ -39,7 +39,10 @@ def test_up_starts_robot_and_link_and_stops_them(tmp_path) -> None:
         assert _listening(link_port)
         assert log.count("open http://") == 1
         link = running.api("GET", "/api/link").json()
-        assert link["configured"] and link["url"] == f"ws://127.0.0.1:{link_port}"
+        assert link["configured"] and link["url"] is None  # the address only to the holder of control
+        grant = running.api("POST", "/api/control/request", headers={"X-Teleprog-Client": "ops"}).json()
+        holder = {"X-Teleprog-Client": "ops", "X-Teleprog-Token": grant["token"]}
+        assert running.api("GET", "/api/link", headers=holder).json()["url"] == f"ws://127.0.0.1:{link_port}"
     finally:
         stop_process(running.proc)  # SIGTERM
     assert running.proc.returncode == 0

@@ -22,7 +22,7 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from shared.wire.messages import RobotSnapshot, RobotState, StatementState, Welcome, decode_message, encode_message
 from shared.wire.session import CommandReceiver, CommandSender
-from support import ServerProcess, free_port
+from support import ServerProcess, free_port, robot_headers
 
 SNAP = RobotSnapshot(state=RobotState.IDLE, q=(0.0,) * 6, base_p_tool=(0.4, 0.0, 0.3), tool_rpy=(0.0, 0.0, 0.0))
 
@@ -178,7 +178,7 @@ class CommandClient:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"client not finished; outbox {list(self.sender.outbox)}")
             try:
-                async with connect(self.url + "/command", compression=None, max_size=None, open_timeout=2) as ws:
+                async with connect(self.url + "/command", compression=None, max_size=None, open_timeout=2, additional_headers=robot_headers()) as ws:
                     self.connects += 1
                     self.ws, self.welcomed = ws, False
                     await ws.send(encode_message(self.sender.hello()))

@@ -27,6 +27,7 @@ from shared.link.core import Direction, LinkCore, LinkFault, LinkParams
 from shared.paths import ASSETS_DIR
 from shared.wire.liveness import HEARTBEAT_INTERVAL_S
 from shared.wire.messages import (
+    MAX_ROBOT_MESSAGE_BYTES,
     Heartbeat,
     Rejected,
     Resume,
@@ -112,7 +113,7 @@ class VirtualSession:
                     data = item.payload
                     self._down(self.robot.on_unit(data) if isinstance(data, bytes) else self.robot.on_text(data))
                 else:
-                    msg = decode_message(item.payload)
+                    msg = decode_message(item.payload, max_bytes=MAX_ROBOT_MESSAGE_BYTES)
                     self.received.append(msg)
                     if msg.type == "welcome":
                         for again in self.sender.on_welcome(msg):
@@ -263,3 +264,62 @@ def test_a_restarted_console_is_told_what_the_robot_holds() -> None:
     for h in welcome.holds:
         assert parse_program(h.text).statements[0] == texts[h.number]  # the text is the statement
         assert h.client_id == "console-test"  # sent by the console before the restart
+
+
+def test_a_console_that_keeps_its_identity_goes_on_from_the_robots_counters() -> None:
+    """A console killed mid-program starts again under the same client id: the robot lists what
+    ran (with texts and final states) and what it holds; the new process's first submission,
+    made before its welcome, is numbered after the dead one's (never taken for a repeat of its
+    communication 1), and a half-sent communication of the dead process is dropped, not spliced."""
+    s = VirtualSession(delay=0.5)
+    first = s.submit(PEG_TRANSFER[:3])
+    s.run_until_final(range(1, 4))
+    s.submit(PEG_TRANSFER[3:])
+    s.run(s.params.delay_s + 1.0)  # the second communication arrived and runs
+    half = encode_unit(3, 0, [Move(joints=(0.0,) * 6)], False)  # the dead process's unfinished third
+    s.raw_up(half)
+    s.run(s.params.delay_s + 0.1)
+    s.cut()  # killed: no goodbye
+    s.run(2.0)  # silence: the robot stops and holds
+    assert s.robot.executor.halted
+    numbered = s.robot.receiver.next_number - 1
+    s.sender = CommandSender("console-test", kept_identity=True)  # the same identity, a new process
+    late = Move(joints=(0.1,) * 6)
+    comm, _units = s.sender.submit([late])  # numbered 1 by the new process before its welcome; not sent before it
+    assert first == comm == 1
+    s.received.clear()
+    s.open()
+    s.run(2 * s.params.delay_s + 0.1)
+    welcome = next(m for m in s.received if m.type == "welcome")
+    assert welcome.units_held == 0 and welcome.last_answered_comm == 2 and welcome.numbered == numbered
+    finished = {h.number: h.state for h in welcome.ran}
+    assert set(finished) >= {1, 2, 3} and all(state == "done" for state in finished.values())
+    assert [h.statement for h in welcome.ran][:3] == PEG_TRANSFER[:3]
+    held = {h.number for h in welcome.holds}
+    assert held and not held & set(finished) and held | set(finished) == set(range(1, numbered + 1))
+    # the replayed answers to the dead process's communications 1 and 2 are not this sender's
+    assert s.sender.first_comm == 3 and s.sender.answers == {} and list(s.sender.outbox) == [3]
+    s.run(2 * s.params.delay_s + 0.1)
+    answers = [m for m in s.received if m.type == "accepted" and m.comm_id == 3]
+    assert answers and answers[0].numbers == (numbered + 1,)  # the new statement, numbered after the old ones
+    assert s.robot.executor.queue[-1] == (numbered + 1, late)
+
+
+def test_a_welcome_to_a_robot_with_a_full_buffer_reaches_the_console_whole_or_cut_and_says_so() -> None:
+    """5,000 held statements: the welcome stays under what a console takes from its robot, lists
+    the held ones first (what a resume runs), and says how many it holds in all."""
+    s = VirtualSession(delay=0.1)
+    s.command(Stop)
+    long_move = Move(joints=(0.123456, -0.654321, 0.5, 0.25, -0.125, 0.0625))
+    s.submit([long_move] * s.robot.executor.settings.max_queue)
+    s.run(1.0)
+    assert len(s.robot.executor.queue) == s.robot.executor.settings.max_queue
+    s.cut()
+    s.sender = CommandSender("console-other")
+    s.received.clear()
+    s.open()
+    s.run(0.5)
+    welcome = next(m for m in s.received if m.type != "rejected")
+    assert welcome.type == "welcome" and welcome.holds_total == s.robot.executor.settings.max_queue
+    assert [h.number for h in welcome.holds] == list(range(1, len(welcome.holds) + 1))
+    assert len(welcome.holds) == welcome.holds_total and welcome.holds[0].statement == long_move

@@ -103,6 +103,8 @@ class FakeRobot:
         # as the client does: the gate where the frame arrives, the listener for what it lets through
         self._frames.append(listener if gate is None else lambda frame: gate(frame) and listener(frame))
 
+    def on_account(self, listener) -> None: ...
+
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None:
         self._restarts.append(listener)
 
@@ -398,7 +400,8 @@ def test_the_link_view_reports_the_robots_health(session, robot, clock) -> None:
     robot.reconnects = 2
     robot.set_health(heard_ago_s=0.3, session_id="robot-s7", restarts=1)
     view = session.link.view()
-    assert view.configured and view.url == "fake://robot" and view.connected and view.status == "live"
+    assert view.configured and view.url is None and view.connected and view.status == "live"  # no address published
+    assert session.link.view(address=True).url == "fake://robot"
     assert view.heard_ago_s == 0.3 and view.silence_limit_s == 1.5
     assert view.robot_session == "robot-s7" and view.robot_restarts == 1 and view.reconnects == 2
     assert view.problems == [] and view.robot_state is None  # no telemetry yet

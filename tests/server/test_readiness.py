@@ -56,6 +56,8 @@ class NumberingRobot:
 
     def on_restart(self, listener) -> None: ...
 
+    def on_account(self, listener) -> None: ...
+
     async def submit(self, statements: Iterable[Statement], timeout: float | None = None) -> tuple[int, ...]:
         statements = list(statements)
         self.submitted.append(statements)
@@ -153,6 +155,49 @@ def test_single_step_says_one_statement_with_its_end_condition(session: Session,
     free = session.readiness.view(0, 1)
     assert free.ready and free.line == "Ready to send 1 (ONLINE: statements go as they are; drags stream to the robot as you drive)"
     assert refusal_of_submit(session, 0, 1) is None
+
+
+OFFLINE_NEEDS = "OFFLINE: statements 1-2 must be previewed to their end without warnings"
+SINGLE_STEP_NEEDS = ("SINGLE STEP: one motion at a time, ended by its UNTIL condition or on a clear path; "
+                     "the previous one must be final")
+
+
+def test_the_submit_tab_line_in_the_offline_and_single_step_regimes_is_the_whole_sentence(session: Session, robot) -> None:
+    """The line the Submit tab shows (``needs_html`` of the session's readiness), word for word,
+    in the two regimes that are not free, ready and not ready: the regime's name, its condition,
+    and where the range stands (or "Ready to send")."""
+    from webui.submit_needs import needs_html
+
+    def tab(view) -> str:
+        html = needs_html(view)
+        assert f'data-submit-ready="{str(view.ready).lower()}" data-regime="{view.regime.value}"' in html
+        return html
+
+    session.modes.set_regime_override(Regime.QUASI)
+    program(session, "DRIVE J1 TO 10 deg", "DRIVE J2 TO -50 deg")
+    waiting = session.readiness.view()
+    assert waiting.line == f"{OFFLINE_NEEDS} (not yet previewed; Preview and submit previews 1-2 and sends it)"
+    assert f">{waiting.line}<" in tab(waiting)
+    session.preview.begin(0, 2)
+    session.preview.step(2)
+    session.preview.end()
+    ready = session.readiness.view()
+    assert ready.ready and ready.line == f"Ready to send 1-2 ({OFFLINE_NEEDS})"
+    assert f">{ready.line}<" in tab(ready)
+
+    session.modes.set_regime_override(Regime.OPERATION)
+    two = session.readiness.view()
+    assert not two.ready and two.line == f"{SINGLE_STEP_NEEDS} ({two.state})"
+    assert two.state == two.blocker.removeprefix("operation regime: ") and "statements 1 and 2 both move the arm" in two.state
+    one = session.readiness.view(0, 1)
+    assert one.ready and one.line == f"Ready to send 1 ({SINGLE_STEP_NEEDS})"
+    assert f">{one.line}<" in tab(one)
+    assert refusal_of_submit(session, 0, 1) is None
+    wait_until(lambda: len(robot.submitted) == 1, "the single step on the robot's loop")
+    assert [e.text for e in session.program.view().entries][:1] == ["DRIVE J2 TO -50 deg"]  # the sent one left
+    after = session.readiness.view(0, 1)  # the step just sent is not final yet
+    assert after.line == f"{SINGLE_STEP_NEEDS} (waiting until the previous statement is final)"
+    assert f">{after.line}<" in tab(after)
 
 
 def test_without_a_robot_the_line_says_so(session: Session) -> None:

@@ -154,3 +154,24 @@ def test_a_communication_over_the_room_left_is_refused_as_buffer_full() -> None:
     step = receiver.on_unit(encode_unit(2, 0, [Event(name="e")] * 3, True))
     assert [n for n, _ in step.accepted] == [1, 2, 3]
     assert [r.state for r in step.replies[1:]] == [StatementState.RECEIVED] * 3
+
+
+def test_a_new_process_under_a_kept_identity_starts_clean_past_the_robots_counters() -> None:
+    """The dead process left a half-sent communication and a stop applied out of turn (id 3 while
+    2 never came): the new process's hello drops both, so its own command 3, a stop, is applied
+    rather than acknowledged as a repeat, and its first communication is not spliced onto old units."""
+    from shared.language.statements import Event
+    from shared.wire.messages import Hello, Stop, encode_message
+
+    r = CommandReceiver("s")
+    r.on_text(encode_message(Hello(client_id="c")))
+    r.on_text(encode_message(Stop(command_id=1)))
+    r.on_text(encode_message(Stop(command_id=3)))  # applied (a stop always is), out of turn
+    r.on_unit(encode_unit(1, 0, [Event(name="half")], False))  # never finished
+    r.disconnect()
+    welcome = r.on_text(encode_message(Hello(client_id="c", new_process=True))).replies[0]
+    assert (welcome.last_applied_command, welcome.units_held, welcome.last_answered_comm) == (1, 0, 0)
+    step = r.on_text(encode_message(Stop(command_id=3)))  # the new process's second command
+    assert [c.command_id for c in step.recoveries] == [3]  # applied, not taken for the dead one's
+    step = r.on_unit(encode_unit(1, 0, [Event(name="new")], True))
+    assert [st.name for _, st in step.accepted] == ["new"]  # its own, whole

@@ -19,6 +19,7 @@ def _cmd_robot(args: argparse.Namespace) -> int:
             ("host", args.host), ("port", args.port), ("cell", args.cell),
             ("heartbeat_s", args.heartbeat_s), ("silence_limit_s", args.silence_limit_s),
             ("listen_first", True if args.listen_first else None), ("cache_dir", args.cache_dir),
+            ("credential_file", args.credential_file),
         )
         if v is not None
     }
@@ -47,12 +48,20 @@ def _cmd_robot(args: argparse.Namespace) -> int:
 
         load_cell(settings.cell)  # a broken cell is a one-line error before anything listens
 
+    service = RobotService(settings)  # a bad credential or credential file is a one-line error here
+
     def ready(port: int) -> None:
         url = f"ws://{settings.host}:{port}"
+        door = service.credential
+        made = str(door.file) if door is not None and door.source == "made" else None
         if args.json:
             print_json({"listening": url, "paths": ["/command", "/telemetry"], "cell": settings.cell,
-                        "world": settings.world.model_dump()})
+                        "world": settings.world.model_dump(), "credential": door.source if door else None,
+                        "credential_file": made})
         else:
+            if made:
+                print(f"teleprog robot: no credential given; made one in {made} "
+                      f"(give the console --robot-credential-file {made})", flush=True)
             w = settings.world
             print(f"teleprog robot: {url} (/command, /telemetry) on {settings.cell}; seed {w.seed}, "
                   f"object offsets up to {w.object_offset * 1e3:g} mm, force noise {w.force_noise:g} N, "
@@ -61,7 +70,7 @@ def _cmd_robot(args: argparse.Namespace) -> int:
                   + (f", clearance {w.clearance * 1e3:g} mm" if w.clearance is not None else ""), flush=True)
 
     try:
-        asyncio.run(RobotService(settings).run(on_ready=ready))
+        asyncio.run(service.run(on_ready=ready))
     except OSError as exc:
         from shared.errors import InputError
 
@@ -86,6 +95,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--silence-limit-s", type=float, default=None,
                    help="silence from the console beyond the heartbeat at which the robot stops, in s (default 1)")
     p.add_argument("--max-queue", type=int, default=None, help="statements the robot's buffer holds (default 5000)")
+    p.add_argument(
+        "--credential-file", default=None,
+        help="file (readable by its owner alone) with the credential consoles must present; default "
+        "$TELEPROG_ROBOT_CREDENTIAL, else a new one written to ~/.local/state/teleprog/robot-<port>.credential",
+    )
     p.add_argument("--json", action="store_true", help="print the listening address as JSON")
     p.add_argument(
         "--cache-dir", default=None,

@@ -32,6 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     up.add_argument(
         "--no-restart", action="store_true", help="leave a telerobot or link child that exits stopped (default: start it again)"
     )
+    up.add_argument("--strict-editing", action="store_true", default=None,
+                    help="keep the thesis's editing rules (§4.3.6): refuse edits that break them (default: free editing)")
     rec = up.add_mutually_exclusive_group()
     up.add_argument("--fault-injection", action="store_true",
                     help="serve /api/faults: the console misbehaves on request (tests, surprise campaigns)")
@@ -40,6 +42,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     group = up.add_mutually_exclusive_group()
     group.add_argument("--no-robot", action="store_true", help="console only: start no robot and no link")
     group.add_argument("--robot-url", default=None, help="use a running robot or link at this ws:// URL")
+    up.add_argument(
+        "--robot-credential-file", default=None,
+        help="file (readable by its owner alone) with the credential of the robot at --robot-url "
+        "(default $TELEPROG_ROBOT_CREDENTIAL; the robot teleprog up starts gets a new one)",
+    )
     group.add_argument(
         "--sedimentation", action="store_true",
         help="serve the particle-sedimentation view (many-body collision detection, thesis ch. 5); no robot, no link",
