@@ -43,4 +43,39 @@ def make_detector(name: str, **options) -> Detector:
     return reg[name](**options)
 
 
-__all__ = ["METHODS", "Detector", "make_detector"]
+def warm_up() -> None:
+    """Compile every numba kernel of the broad phase once, serial and parallel compilations alike
+    (all ``cache=True``: numba keeps them in ``__pycache__`` beside the sources, and every later
+    process loads them instead of compiling). ``scripts/setup`` calls it, so no test or console
+    compiles, and two processes never compile the same kernel at once.
+
+    Every method runs a few frames of a moving scene (skin lists built, kept and rebuilt) and of a
+    crowded one (columns kept sorted by z, z windows), first with the parallel thresholds lowered
+    to a few bodies, so the parallel kernels compile on a small scene, then at the defaults, where
+    the same scenes take the serial compilations."""
+    from shared.broadphase import base, columns, grid, verlet
+    from shared.broadphase.columns import ColumnEngine
+    from shared.broadphase.workloads import make_scene
+
+    thresholds = {(grid, "PARALLEL_MIN"): 1, (columns, "PARALLEL_MIN"): 1, (base, "STATS_PARALLEL_MIN"): 1,
+                  (verlet, "LIST_PARALLEL_MIN"): 1}
+    saved = {key: getattr(*key) for key in thresholds}
+    try:
+        for lowered in (True, False):
+            for (module, name), value in thresholds.items():
+                setattr(module, name, value if lowered else saved[(module, name)])
+            for method in METHODS:
+                for kind in ("uniform", "gaussian"):
+                    scene = make_scene(kind, n=400, size=40.0, speed=0.3, radius_spread=0.4, seed=1, clusters=2)
+                    detector = make_detector(method)
+                    if method == "ugrid":  # every column sorted and windowed, on a scene this small
+                        detector._engine = ColumnEngine(sort_min=0, zwin_min=0)
+                    for _ in range(4):
+                        detector.update(scene.centres, scene.radii)
+                        scene.step()
+    finally:
+        for (module, name), value in saved.items():
+            setattr(module, name, value)
+
+
+__all__ = ["METHODS", "Detector", "make_detector", "warm_up"]

@@ -13,6 +13,7 @@ bodies are reported identically everywhere.
 
 from __future__ import annotations
 
+import types
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -87,7 +88,23 @@ def _frame_lanes(c, r, parts):
     return lo, hi, bad, rlo, rhi, rbad
 
 
-_frame_lanes_serial = njit(cache=True)(_frame_lanes.py_func)
+def serial_twin(py_func):
+    """The same code as a function of its own name (``<name>_serial``), for a serial compilation
+    of a parallel kernel. Numba's cache files are named by module, qualified name and line, and
+    its index keys hold neither ``parallel`` nor the other options, so a serial compilation of the
+    kernel's own function would share the parallel one's files, each process loading whichever
+    was saved first; the twin's files are its own (``cache=True`` on both: set-up compiles them
+    once, ``shared.broadphase.warm_up``, and every later process loads them)."""
+    twin = types.FunctionType(py_func.__code__, py_func.__globals__, py_func.__name__ + "_serial", py_func.__defaults__,
+                              py_func.__closure__)
+    twin.__qualname__ = py_func.__qualname__ + "_serial"
+    twin.__module__ = py_func.__module__
+    twin.__kwdefaults__ = py_func.__kwdefaults__
+    twin.__doc__ = py_func.__doc__
+    return twin
+
+
+_frame_lanes_serial = njit(cache=True)(serial_twin(_frame_lanes.py_func))
 
 
 @njit(cache=True)

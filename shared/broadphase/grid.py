@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-from shared.broadphase.base import sphere_overlap
+from shared.broadphase.base import serial_twin, sphere_overlap
 
 N_CHUNKS_PER_THREAD = 8
 #: below this many bodies the kernels run serially: a parallel launch costs 3-200 us (OpenMP /
@@ -43,7 +43,7 @@ def kernel_for(kernel, n: int):
         return kernel
     f = _SERIAL.get(kernel)
     if f is None:
-        f = _SERIAL[kernel] = njit(cache=False)(kernel.py_func)
+        f = _SERIAL[kernel] = njit(cache=True)(serial_twin(kernel.py_func))
     return f
 
 

@@ -185,6 +185,31 @@ def test_heavily_clustered_scene_z_windows_match_brute_force(parallel, threshold
     assert crowded > max(sort_min, HUGE)  # the crowded path really ran
 
 
+def test_a_pair_touching_at_exactly_the_reach_inside_one_crowded_column_is_found():
+    """A crowded column (more than ZWIN_MIN bodies, so kept sorted by z and tested through z
+    windows) holding a vertical stack of equal spheres, each touching the next at exactly the
+    contact distance straight up: |dz| is the whole reach (the largest diameter, up to the
+    rounding pad), the window's very edge. Beside it, in the neighbouring column, a second stack
+    touches the first at exactly the contact distance along a 3-4-5 diagonal. Every pair is found,
+    as brute force finds it."""
+    r = 2.5  # contact distance 5: z steps of 5 and the (3, 0, 4) diagonal are exact in floating point
+    n = columns.ZWIN_MIN + 36
+    z = 5.0 * np.arange(n)
+    column = np.column_stack([np.full(n, 4.0), np.full(n, 40.0), z])
+    beside = np.column_stack([np.full(n, 7.0), np.full(n, 40.0), z + 4.0])  # (3, 0, 4) from its partner
+    origin = np.array([[0.0, 0.0, -500.0], [80.0, 80.0, 1000.0]])  # far corners: the grid's origin at 0
+    c = np.vstack([column, beside, origin])
+    radii = np.full(len(c), r)
+    det = make_detector("ugrid")
+    ref = make_detector("brute").update(c, radii)
+    got = det.update(c, radii)
+    assert int(np.floor(4.0 / det.last_cell)) != int(np.floor(7.0 / det.last_cell))  # two columns
+    stack = {(i, i + 1) for i in range(n - 1)}  # the touching pairs straight up, |dz| = 5
+    diagonal = {(i, n + i) for i in range(n)}  # the touching pairs across the columns
+    assert stack | diagonal <= {tuple(p) for p in ref.tolist()}
+    assert np.array_equal(got, ref), f"{len(got)} pairs vs {len(ref)} from brute force"
+
+
 @pytest.mark.parametrize("extent", [20.0, 600.0, 3.0e6, 2.0**70])
 def test_float32_filter_reach_covers_every_pair_within_reach(extent):
     # the filter compares float32 copies of the centres with a widened reach (filter_frame);

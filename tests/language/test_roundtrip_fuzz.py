@@ -13,8 +13,11 @@ from shared.language import bounds
 from shared.language.formatter import format_program, format_statement
 from shared.language.parser import parse_json, parse_program
 from shared.language.statements import (
+    ACTION_KINDS,
+    PARAMETER_KINDS,
     SPEED_BOUND,
     SPEED_MIN,
+    TASK_KINDS,
     Draw,
     Drive,
     Event,
@@ -99,7 +102,27 @@ def test_mutated_valid_programs_never_crash(data: st.DataObject) -> None:
                     max_leaves=12))
 def test_random_json_never_crashes(data: object) -> None:
     result = parse_json(json.dumps(data))
-    assert result.ok or result.errors
+    assert result.ok == (result.errors == [])
+    if _non_finite(data):  # json.dumps writes NaN or Infinity, which strict JSON refuses: one fault
+        assert result.statements == [] and len(result.errors) == 1 and "not a JSON number" in result.errors[0].message
+    elif not isinstance(data, list):
+        assert result.statements == [] and [e.message for e in result.errors] == ["a JSON program is a list of statement objects"]
+    else:  # each item is a statement or has its own errors, pointing into it
+        faulty = {e.statement for e in result.errors}
+        assert all(e.pointer.startswith(f"/{e.statement}") for e in result.errors)
+        assert faulty <= set(range(len(data))) and len(result.statements) + len(faulty) == len(data)
+        for i, item in enumerate(data):  # only an object whose kind is a statement's can be one
+            assert i in faulty or (isinstance(item, dict) and item.get("kind") in ACTION_KINDS | PARAMETER_KINDS | TASK_KINDS), item
+
+
+def _non_finite(data: object) -> bool:
+    if isinstance(data, float):
+        return not math.isfinite(data)
+    if isinstance(data, list):
+        return any(_non_finite(v) for v in data)
+    if isinstance(data, dict):
+        return any(_non_finite(v) for v in data.values())
+    return False
 
 
 # -- round trip -------------------------------------------------------------------------------

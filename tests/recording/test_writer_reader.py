@@ -12,6 +12,9 @@ from server.recording import records
 from server.recording.reader import read_recording
 from server.recording.writer import RecordingWriter
 from shared.errors import InputError
+from support import wait_for
+
+WAIT_S = 30.0  # a bound for a loaded 2-core machine: the writer closes the chunk within flush_s when it runs
 
 
 def _write(path, n: int, **options) -> RecordingWriter:
@@ -45,6 +48,26 @@ def test_a_file_cut_anywhere_reads_up_to_its_last_complete_chunk(tmp_path, keep:
     assert 0 < len(versions) <= 3000  # a cut in the summary section loses no message
     assert "cut off" in rec.problem and f"{len(versions)} messages read" in rec.problem
     assert "lost" in rec.problem
+
+
+def test_a_quiet_recording_closes_its_chunk_on_time_so_an_open_file_reads_what_was_put(tmp_path) -> None:
+    """A handful of messages, far from filling a chunk (the count-based close) and with the file
+    still open: the time-based flush (``flush_s``) closes the chunk, so a console killed now would
+    leave them readable. No message is put after the first three: only the clock can close it."""
+    path = tmp_path / "quiet.mcap"
+    w = _write(path, 3, flush_s=0.05, chunk_size=64 * 1024 * 1024)
+    try:
+
+        def readable() -> list[int]:
+            try:
+                return [m.data["version"] for m in read_recording(path).on("/virtual/arm")]
+            except InputError:  # nothing readable yet: the header only
+                return []
+
+        assert wait_for(readable, timeout=WAIT_S, interval=0.02, what="the three messages readable from the open file") == [0, 1, 2]
+        assert not read_recording(path).complete  # still open: read from the flushed chunk, not the summary
+    finally:
+        w.close()
 
 
 def test_a_file_that_is_not_a_recording_is_refused_in_one_sentence(tmp_path) -> None:

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco")
-
-from robot_sim.physics.terrain import HeightGrid, cell_height_grid, height_grid, rasterise, terrain_geoms  # noqa: E402
-from shared.cells.loader import load_cell  # noqa: E402
-from shared.terrain.cell import TERRAIN_OBJECT, cell_terrain_mesh, load_cell_terrain  # noqa: E402
+from robot_sim.physics.terrain import HeightGrid, cell_height_grid, height_grid, rasterise, terrain_geoms
+from shared.cells.loader import load_cell
+from shared.terrain.cell import TERRAIN_OBJECT, cell_terrain_mesh, load_cell_terrain
 
 ROOT = Path(__file__).resolve().parents[2]
 CELL = ROOT / "assets" / "cells" / "rover_terrain.toml"

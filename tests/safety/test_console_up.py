@@ -3,8 +3,8 @@
 The console with its own telerobot and link children (real processes, loopback WebSockets):
 
 * the link frozen (SIGSTOP): ``/api/link`` says the robot is ``silent`` with a growing age and
-  telemetry ``stale`` (no robot state read from old data) within the silence limit plus a margin,
-  and ``live`` again after SIGCONT;
+  telemetry ``stale`` (no robot state read from old data) past the 1.2 s silence contract on the
+  console's own clock, and ``live`` again after SIGCONT;
 * the telerobot child killed while statements are queued: ``teleprog up`` reaps it, says so in
   ``/api/link`` and starts it again on its port; the console reconnects to the new robot
   session, the old statements read ``unknown`` in the sent list, and a new submission runs to done.
@@ -22,12 +22,20 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 
-from support import RunningConsole, start_console, stop_process, wait_for
+from shared.wire.liveness import DEFAULT_SILENCE_LIMIT_S
+from support import (
+    LOADED_MACHINE_MARGIN_S,
+    SILENCE_CONTRACT_S,
+    RunningConsole,
+    reported_silence_s,
+    start_console,
+    stop_process,
+    wait_for,
+)
 
 CLIENT = {"X-Teleprog-Client": "safety"}
-SILENCE_LIMIT_S = 1.0
-MARGIN_S = 2.0  # polling, a loaded machine
 
 
 def _child_pid(console: RunningConsole, command: str) -> int:
@@ -73,11 +81,21 @@ def test_frozen_link_shows_silent_and_stale_then_live_again(tmp_path) -> None:
         wait_for(lambda: (v := _link(console))["status"] == "live" and v["telemetry"] == "live", 60, 0.1, "a live link")
         link_pid = _child_pid(console, "link")
         os.kill(link_pid, signal.SIGSTOP)
-        frozen_at = time.monotonic()
-        view = wait_for(lambda: (v := _link(console))["status"] == "silent" and v, SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2, 0.05,
-                        "the link shown silent")
-        assert time.monotonic() - frozen_at < SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2
-        assert view["heard_ago_s"] > SILENCE_LIMIT_S
+        live: list[dict] = []  # the views that still said live after the freeze
+
+        def silent() -> dict | None:
+            v = _link(console)
+            if v["status"] == "silent":
+                return v
+            live.append(v)
+            return None
+
+        view = wait_for(silent, SILENCE_CONTRACT_S + LOADED_MACHINE_MARGIN_S, 0.05, "the link shown silent")
+        # on the console's own clock (status and age are read at one instant): live up to the
+        # contract's 1.2 s of silence, silent beyond it, however late the polls came
+        assert view["silence_limit_s"] == DEFAULT_SILENCE_LIMIT_S
+        assert view["heard_ago_s"] >= SILENCE_CONTRACT_S
+        assert all(v["status"] == "live" and v["heard_ago_s"] <= SILENCE_CONTRACT_S for v in live), live
         assert view["connected"] is True  # the socket is open: silence, not a cut
         later = wait_for(lambda: (v := _link(console))["heard_ago_s"] > view["heard_ago_s"] + 0.5 and v, 5, 0.1,
                          "the silence age growing")
@@ -158,11 +176,12 @@ def test_a_frozen_console_halts_the_robot_within_the_limit_and_resume_continues(
         _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
         wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
         os.kill(console.proc.pid, signal.SIGSTOP)
-        frozen, frozen_at = True, time.monotonic()
-        held = wait_for(lambda: (h := health())["state"] == "stopped" and h, SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2, 0.05,
-                        "the robot stopped by silence")
-        assert time.monotonic() - frozen_at < SILENCE_LIMIT_S + 0.2 + MARGIN_S + 2
-        assert "no message from the console" in held["halted"]
+        frozen = True
+        held = wait_for(lambda: (h := health())["state"] == "stopped" and h, SILENCE_CONTRACT_S + LOADED_MACHINE_MARGIN_S,
+                        0.05, "the robot stopped by silence")
+        # on the robot's own servo clock: it halted at the contract's 1.2 s of silence (its report
+        # has 0.1 s steps), whatever the load did to the test's polling
+        assert reported_silence_s(held["halted"]) == pytest.approx(SILENCE_CONTRACT_S, abs=0.05), held["halted"]
         time.sleep(0.5)  # the arm holds: the statement is still current, not finished
         assert health()["state"] == "stopped" and health()["current"] == held["current"] != 0
         os.kill(console.proc.pid, signal.SIGCONT)
@@ -185,7 +204,7 @@ def test_a_stalled_session_neither_silences_the_link_nor_delays_a_stop(tmp_path)
     """The session's work stalls for 5 s (``/api/faults/stall``: a computation holding the
     session's lock, as a slow plan does) while the robot runs a drive: the heartbeats go on, so
     the robot never halts for silence, and a STOP pressed during the stall reaches the robot
-    within the link's round trip (plus polling on a loaded machine), long before the stall ends."""
+    within the link's delay (plus the test's polling on a loaded machine), long before the stall ends."""
     delay_s, stall_s = 0.3, 5.0
     console = start_console(tmp_path, "--delay-ms", str(delay_s * 1e3), "--fault-injection")
     try:
@@ -200,21 +219,19 @@ def test_a_stalled_session_neither_silences_the_link_nor_delays_a_stop(tmp_path)
         wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
         assert _api(console, "POST", "/api/faults/stall", {"seconds": stall_s})["started"]
         stalled_at = time.monotonic()
-        # past the robot's silence limit with the session stalled: it still hears the console
-        while time.monotonic() < stalled_at + SILENCE_LIMIT_S + 1.0:
+        # twice the silence contract with the session stalled: the robot still hears the console
+        while time.monotonic() < stalled_at + 2 * SILENCE_CONTRACT_S:
             h = health()
             assert h["state"] == "running" and h["halted"] is None, f"the robot halted during the stall: {h}"
             time.sleep(0.05)
         # STOP during the stall: its HTTP answer waits for the session, the command must not
         answer: dict = {}
         stopping = threading.Thread(target=lambda: answer.update(r=console.api("POST", "/api/robot/stop", headers=CLIENT)))
-        pressed_at = time.monotonic()
         stopping.start()
-        wait_for(lambda: health()["state"] == "stopped", 2 * delay_s + 0.2 + MARGIN_S, 0.02, "the robot stopped by the STOP")
-        stopped_at = time.monotonic()
-        assert stopped_at - pressed_at < 2 * delay_s + 0.2 + MARGIN_S
-        assert stopped_at < stalled_at + stall_s, "the STOP waited for the stalled session"
-        assert health()["halted"] is None or "no message from the console" not in health()["halted"]
+        # the link's one-way delay to the robot, plus the test's polling on a loaded machine
+        wait_for(lambda: health()["state"] == "stopped", delay_s + LOADED_MACHINE_MARGIN_S, 0.02, "the robot stopped by the STOP")
+        assert time.monotonic() < stalled_at + stall_s, "the STOP waited for the stalled session"
+        assert health()["halted"] is None  # stopped by the operator's STOP, never halted for silence
         stopping.join(stall_s + 30)
         assert answer["r"].status_code == 200, answer["r"].text
         # after the stall: the console shows the stop acknowledged, the drive held, not failed by silence

@@ -234,12 +234,6 @@ def test_fuzzed_unit_bodies_never_raise_and_admit_only_bounded_numbers(items: li
             _assert_bounded(statement)
 
 
-@settings(max_examples=100, deadline=None)
-@given(st.binary(max_size=300))
-def test_fuzzed_unit_bytes_never_raise(body: bytes) -> None:
-    assert isinstance(decode_unit(unit(body)), (CommandUnit, Rejected))
-
-
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(statement_json(), max_size=4))
 def test_fuzzed_statement_json_never_raises_and_admits_only_bounded_numbers(items: list[str]) -> None:

@@ -24,7 +24,6 @@ from shared.tasknet.cenet import check_condition_event, condition_event_net, to_
 from shared.tasknet.jsonform import load_net
 from shared.tasknet.ptnet import PTNet, net_from_matrices
 
-snakes_nets = pytest.importorskip("snakes.nets")
 ROOT = Path(__file__).resolve().parents[2]
 PEG = ROOT / "assets" / "tasks" / "peg_transfer_ce.pnml"
 

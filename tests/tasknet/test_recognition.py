@@ -116,6 +116,37 @@ def test_only_the_atoms_the_enabled_actions_change_are_checked(cell, space) -> N
     assert {a.text for a in coordinator.enabled()} == {"grasp(PEG)"}
 
 
+class _SetContacts:
+    """A contact model whose answers a test sets: ``truth`` is what every atom reads as now."""
+
+    def __init__(self, truth: dict[str, bool]) -> None:
+        self.truth = dict(truth)
+
+    def evaluate(self, state, atoms=None) -> dict[str, bool]:
+        return {a: self.truth[a] for a in (self.truth if atoms is None else atoms)}
+
+
+def test_an_action_is_recognised_only_once_the_atoms_its_rule_deletes_no_longer_hold(space) -> None:
+    """grasp(PEG) adds HOLDING(PEG) and deletes HANDEEMPTY and PEGFREE(PEG): fingers that read
+    as holding the peg while the hand still reads empty (or the peg still free) are not a grasp
+    yet; the marking stays until every deleted atom is false too."""
+    m0 = {"HANDEEMPTY": True, "PEGFREE(PEG)": True, "HOLDING(PEG)": False, "PEGINHOLE(PEG,HOLE1)": True,
+          "PEGINHOLE(PEG,HOLE2)": False, "HOLEEMPTY(HOLE1)": False, "HOLEEMPTY(HOLE2)": True}
+    contacts = _SetContacts(m0)
+    state = CellState(np.eye(4), True)  # what the fake contacts read is set on them, not here
+    coordinator = TaskCoordinator(space, contacts, state)
+    start = coordinator.marking
+    assert start == {"HANDEEMPTY", "PEGFREE(PEG)", "PEGINHOLE(PEG,HOLE1)", "HOLEEMPTY(HOLE2)"}
+    contacts.truth["HOLDING(PEG)"] = True  # added atom holds, both deleted atoms still hold
+    assert coordinator.observe(state) == [] and coordinator.marking == start
+    contacts.truth["HANDEEMPTY"] = False  # one deleted atom gone, PEGFREE(PEG) still holds
+    assert coordinator.observe(state) == [] and coordinator.marking == start
+    contacts.truth["PEGFREE(PEG)"] = False  # now every effect of grasp holds
+    assert [a.action for a in coordinator.observe(state, t=2.0, statement=4)] == ["grasp(PEG)"]
+    assert coordinator.marking == {"HOLDING(PEG)", "PEGINHOLE(PEG,HOLE1)", "HOLEEMPTY(HOLE2)"}
+    assert (coordinator.actions[0].t, coordinator.actions[0].statement) == (2.0, 4)
+
+
 def test_contact_needs_the_faces_within_the_tolerance(cell, space) -> None:
     world = ObjectWorld(cell)
     contacts = ContactModel(space, cell)

@@ -13,8 +13,11 @@ from shared.language.statements import Drive, Event, Move, SetSpeed, Speed, Spee
 from shared.wire.messages import Rejected, RejectReason
 from shared.wire.units import (
     HEADER,
+    FLAG_END,
     HEADER_SIZE,
+    MAGIC,
     MAX_BODY_BYTES,
+    UNIT_VERSION,
     CommandUnit,
     UnitStreamDecoder,
     decode_unit,
@@ -111,10 +114,38 @@ def test_huge_body_is_refused_from_the_header_alone():
     assert decoder.broken and decoder.feed(encode_unit(1, 0, PROGRAM, True)) == []
 
 
-@given(st.binary(max_size=400))
+@given(st.one_of(st.binary(max_size=400), st.binary(max_size=300).map(_raw_unit)))
 @settings(max_examples=300)
-def test_arbitrary_bytes_never_raise(data):
-    assert isinstance(decode_unit(data), (CommandUnit, Rejected))
+def test_arbitrary_bytes_are_refused_for_their_first_fault(data):
+    """Any bytes, bare or behind a good header: the answer is the first fault's rejection (the
+    header, then its length, then the body's JSON), and a unit only for a JSON list."""
+    result = decode_unit(data)
+    if len(data) < HEADER_SIZE:
+        assert isinstance(result, Rejected) and result.reason is RejectReason.BAD_HEADER and "shorter than" in result.detail
+        return
+    magic, version, flags, comm_id, seq, body_len = HEADER.unpack_from(data)
+    body = data[HEADER_SIZE:]
+    if magic != MAGIC or version != UNIT_VERSION or comm_id < 1 or flags & ~FLAG_END:
+        assert isinstance(result, Rejected) and result.reason is RejectReason.BAD_HEADER
+    elif body_len > MAX_BODY_BYTES:
+        assert isinstance(result, Rejected) and result.reason is RejectReason.TOO_LARGE
+    elif len(body) != body_len:
+        assert isinstance(result, Rejected) and result.reason is RejectReason.LENGTH_MISMATCH
+    else:
+        assert (result.comm_id, result.seq) == (comm_id, seq)
+        try:
+            document = json.loads(body.decode("utf-8"))
+        except ValueError:  # not UTF-8, or not JSON at all: refused as such
+            assert isinstance(result, Rejected) and result.reason is RejectReason.BAD_JSON
+            return
+        if isinstance(result, CommandUnit):
+            assert isinstance(document, list) and len(result.statements) == len(document)
+            assert result.end == bool(flags & FLAG_END)
+        else:  # strict JSON refuses more than Python's json (NaN, 1e999, a repeated key)
+            assert result.reason in (RejectReason.BAD_JSON, RejectReason.BAD_BODY, RejectReason.UNKNOWN_KIND,
+                                     RejectReason.INVALID_STATEMENT)
+            if result.reason is RejectReason.BAD_BODY and not isinstance(document, list):
+                assert result.detail == "body is not a JSON list of statements"
 
 
 @given(st.recursive(st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
