@@ -69,7 +69,7 @@ class ReplayPage:
         r = opened.recording
         about = f"**Replay** (read-only): `{html.escape(opened.path.name)}`  \ncell {cell.name}, {timeline.duration_s:.1f} s"
         self.about = gui.add_markdown(about)
-        label = "Damaged" if r.damage else "Cut off" if not r.complete else "Note"
+        label = "Damaged" if r.damage else "Being written" if r.writing else "Cut off" if not r.complete else "Note"
         self.problem = gui.add_markdown(f"**{label}:** {html.escape(r.problem, quote=False)}" if r.problem else "", visible=bool(r.problem))
         ticks = [round((m.t_ns - timeline.start) * 1e-9, 2) for m in timeline.marks][:MAX_TICKS]
         duration = max(round(timeline.duration_s, 2), 0.01)

@@ -13,6 +13,7 @@ read: a FIFO, a device or a folder is refused without being opened (``shared.fil
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
 import struct
@@ -66,6 +67,8 @@ class Recording:
     damage: str | None = None
     """what of the file is damaged (a chunk that fails its checksum or decompression), in a
     sentence without the file's name; None when nothing is (a cut-off file is not damaged)"""
+    writing: bool = False
+    """a console is writing the file now (it holds the writer's lock): not closed yet, not cut off"""
     _by_topic: dict[str, list[RecordedMessage]] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -190,6 +193,7 @@ def read_recording(path: str | Path) -> Recording:
     no message can be read raises ``InputError`` (``<file>: damaged recording: ...``)."""
     path = Path(path)
     raw, size = open_regular(path, "recording")  # a FIFO, a device or a folder is refused unopened
+    writing = being_written(raw)
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     messages: list[RecordedMessage] = []
@@ -272,6 +276,9 @@ def read_recording(path: str | Path) -> Recording:
         if not messages:
             raise InputError(f"{path}: damaged recording: {'; '.join(damage)}; no message could be read")
         problem = f"{path.name}: damaged recording: {'; '.join(damage)}; {len(messages)} messages read, {last}"
+    elif not complete and writing:
+        problem = (f"{path.name} is being written (a console records into it now): {len(messages)} messages "
+                   f"read so far; {last}")
     elif not complete:
         lost = max(0, size - good_until)
         problem = (f"{path.name} was cut off (the console did not close it: killed, or the disk filled): "
@@ -280,7 +287,20 @@ def read_recording(path: str | Path) -> Recording:
         extra = f"{bad_payloads} messages had payloads that are not JSON and were skipped"
         problem = f"{problem}; {extra}" if problem else f"{path.name}: {extra}"
     return Recording(path=path, messages=messages, complete=complete, problem=problem,
-                     damage="; ".join(damage) or None)
+                     damage="; ".join(damage) or None, writing=writing and not complete)
+
+
+def being_written(stream: BinaryIO) -> bool:
+    """Whether a console holds the file open to write it (``RecordingWriter`` locks it while it
+    writes; the lock goes with its process, however that ends)."""
+    try:
+        fcntl.flock(stream.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except (AttributeError, OSError, ValueError):
+        return False
+    fcntl.flock(stream.fileno(), fcntl.LOCK_UN)
+    return False
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ class StatementSummary(BaseModel):
 class RecordingSummary(BaseModel):
     file: str
     complete: bool = Field(description="the console closed the file")
+    writing: bool = Field(False, description="a console is writing the file now (not closed yet, not cut off)")
     problem: str | None = Field(None, description="what could not be read")
     cell: str | None = None
     robot: str | None = None
@@ -65,7 +66,7 @@ def summarize(recording: Recording) -> RecordingSummary:
     start = recording.session
     dropped = recording.on(records.DROPPED)
     return RecordingSummary(
-        file=str(recording.path), complete=recording.complete, problem=recording.problem,
+        file=str(recording.path), complete=recording.complete, writing=recording.writing, problem=recording.problem,
         cell=start.cell if start else None, robot=start.robot if start else None,
         start=recording.start_ns * 1e-9 if recording.messages else None, duration_s=recording.duration_s,
         messages=len(recording.messages), channels=recording.counts(),
@@ -77,7 +78,7 @@ def summarize(recording: Recording) -> RecordingSummary:
 def summary_lines(summary: RecordingSummary) -> list[str]:
     """The summary for a person."""
     lines = [f"{summary.file}: {summary.cell or '?'} / {summary.robot or '?'}, {summary.duration_s:.1f} s, "
-             f"{summary.messages} messages" + ("" if summary.complete else " (cut off)")]
+             f"{summary.messages} messages" + ("" if summary.complete else " (being written)" if summary.writing else " (cut off)")]
     if summary.problem:
         lines.append(f"  note: {summary.problem}")
     if summary.dropped:

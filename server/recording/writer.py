@@ -16,6 +16,7 @@ recording and is reported through ``on_error``; the console goes on.
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import logging
 import threading
 import time
@@ -84,6 +85,17 @@ def _schema_for(topic: str) -> tuple[str, bytes]:
     return name, b'{"type": "object"}'
 
 
+def _hold_for_writing(stream: Any) -> None:
+    """Lock the open file (``flock``, exclusive) for as long as this process holds it open: a
+    reader that finds the file locked knows a console is writing it now, not that one was killed
+    (``server.recording.reader``). The lock goes with the process however it ends. A stream
+    without a file (a test's) is not locked."""
+    try:
+        fcntl.flock(stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except (AttributeError, OSError, ValueError):
+        pass
+
+
 class RecordingWriter:
     """One MCAP file, written by a daemon thread (see the module docstring)."""
 
@@ -126,6 +138,7 @@ class RecordingWriter:
         """Open the file and start the thread; raises ``OSError`` when the file cannot be made."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._stream = self._opener(self.path)
+        _hold_for_writing(self._stream)
         self._thread.start()
 
     def put(self, topic: str, log_time_ns: int, payload: Payload) -> bool:

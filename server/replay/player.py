@@ -98,7 +98,8 @@ class ReplayView(BaseModel):
 
     file: str
     cell: str
-    complete: bool = Field(description="the console closed the file (false: cut off)")
+    complete: bool = Field(description="the console closed the file (false: cut off, or being written)")
+    writing: bool = Field(False, description="a console is writing the file now: not closed yet, not cut off")
     problem: str | None = Field(None, description="what could not be read, in a sentence")
     duration_s: float
     t_s: float = Field(description="the playhead, s from the start")
@@ -249,7 +250,7 @@ class ReplayPlayer:
         if m.last_mark is not None:
             mark = MarkOut(t_s=(m.last_mark.t_ns - opened.timeline.start) * 1e-9, kind=m.last_mark.kind, text=m.last_mark.text)
         return ReplayView(
-            file=str(opened.path), cell=opened.cell.name, complete=r.complete, problem=r.problem,
+            file=str(opened.path), cell=opened.cell.name, complete=r.complete, writing=r.writing, problem=r.problem,
             duration_s=opened.timeline.duration_s, t_s=m.t_s, playing=playing, speed=speed,
             marks=len(opened.timeline.marks), mark=mark, remote_state=m.remote_state, remote_age_s=m.remote_age_s,
             predicted_points=len(m.predicted), sent=sent, regime=m.regime, link=m.link_status,

@@ -181,12 +181,14 @@ class GeneratorSettings:
     counts."""
     frame: Frame = Frame.BASE
     """Frame of the Cartesian targets of DRAW, ROTATE and MOVES."""
-    mm_decimals: int = 2
-    """Generated positions are rounded to this many decimals of a millimetre (0.01 mm: far
-    below the minimum change, and what an operator can read); the text shows exactly these."""
-    deg_decimals: int = 3
+    mm_decimals: int = 1
+    """Generated positions are rounded to this many decimals of a millimetre (0.1 mm: the
+    resolution an operator controls with the number boxes, below the minimum change, and it
+    keeps the IK's hundredths out of the text: a pure-x drag writes y 0, not 0.04); the text
+    shows exactly these."""
+    deg_decimals: int = 1
     """Generated angles (joint targets, roll-pitch-yaw) are rounded to this many decimals of a
-    degree (0.001 deg: 0.01 mm at 0.6 m)."""
+    degree (0.1 deg, as the joint boxes take them)."""
     merge_tolerance: float = 0.002
     """m: a DRAW/MOVES continues the previous one when the previous target lies within this of
     the straight line from the previous start to the new target (and between them)."""

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from shared.errors import InputError
 from shared.language.statements import Draw, Drive, Frame, Move, Moves, Rotate
+from shared.language.formatter import format_statement
 from shared.program.generator import (
     GeneratorSettings,
     JogMode,
@@ -29,9 +30,10 @@ from shared.spatial import exp_so3, make_transform, pose_to_transform, rotation_
 RATE = 100.0
 DT = 1.0 / RATE
 DATA = Path(__file__).parent / "data" / "puma_jog_100hz.npz"
-# generated statements hold what their text shows: 0.01 mm and 0.001 deg (half a step of rounding)
-POSITION_TEXT = 0.5e-5 + 1e-12
-ANGLE_TEXT = math.radians(0.0005) + 1e-12
+# generated statements hold what their text shows: 0.1 mm and 0.1 deg, the resolution the operator
+# controls (half a step of rounding)
+POSITION_TEXT = 0.5e-4 + 1e-12
+ANGLE_TEXT = math.radians(0.05) + 1e-12
 Q0 = np.radians([10.0, -40.0, 170.0, 5.0, 40.0, -10.0])
 R0 = rpy_to_matrix([0.1, -0.2, 0.3])
 P0 = np.array([0.45, -0.10, 0.30])
@@ -118,6 +120,20 @@ def test_straight_tool_line_is_one_draw() -> None:
     assert kinds(out) == ["DRAW"]
     assert out[0].frame is Frame.BASE
     np.testing.assert_allclose(out[0].position, p1, atol=POSITION_TEXT)
+
+
+def test_a_pure_x_drag_writes_round_numbers_without_the_iks_hundredths() -> None:
+    """The tool's y and z wobble by a few hundredths of a millimetre (the IK's noise) during a
+    pure-x drag: the text holds the 0.1 mm the operator controls, so y and z read as they started."""
+    start = np.array([0.6535, 0.0, 0.49])
+    end = start + np.array([0.05, 0.0, 0.0])
+    ps = path(hold(start, 30), ramp(start, end, 180), hold(end, 30))
+    wobble = np.zeros_like(ps)
+    wobble[:, 1] = 0.04e-3 * np.sin(np.arange(len(ps)))
+    wobble[:, 2] = -0.03e-3 * np.cos(np.arange(len(ps)))
+    out = generate_program(tool_stream(ps + wobble, hold(R0, len(ps)).reshape(-1, 3, 3)))
+    assert kinds(out) == ["DRAW"]
+    assert format_statement(out[0]) == "DRAW TO (703.5, 0, 490) mm IN BASE"
 
 
 def test_pure_rotation_is_one_rotate() -> None:

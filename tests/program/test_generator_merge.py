@@ -32,7 +32,7 @@ DT = 0.01
 Q0 = np.radians([10.0, -40.0, 170.0, 5.0, 40.0, -10.0])
 R0 = rpy_to_matrix([0.1, -0.2, 0.3])
 P0 = np.array([0.45, -0.10, 0.30])
-TEXT_MM = 0.5e-5 + 1e-12
+TEXT_MM = 0.5e-4 + 1e-12  # the text's 0.1 mm, half a step of rounding
 
 
 def hold(value, n: int) -> np.ndarray:
@@ -120,7 +120,7 @@ def test_a_turn_about_one_axis_in_steps_is_one_rotate() -> None:
     rs = np.stack([exp_so3(axis * a) @ R0 for a in angles])
     program = generate_program(tool_stream(hold(P0, len(rs)), rs), merge=True)
     assert [st.kind for st in program] == ["ROTATE"]
-    assert rotation_angle(rpy_to_matrix(program[0].rpy) @ R0.T) == pytest.approx(0.6, abs=1e-4)
+    assert rotation_angle(rpy_to_matrix(program[0].rpy) @ R0.T) == pytest.approx(0.6, abs=math.radians(0.1))  # three angles at 0.1 deg
 
 
 def test_a_later_stroke_along_the_same_line_continues_the_earlier_one() -> None:

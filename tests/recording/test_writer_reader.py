@@ -70,6 +70,38 @@ def test_a_quiet_recording_closes_its_chunk_on_time_so_an_open_file_reads_what_w
         w.close()
 
 
+def test_a_recording_being_written_is_called_so_and_the_same_bytes_left_behind_are_cut_off(tmp_path) -> None:
+    """While a console writes a file, readers (``record summary``, the replay) say it is being
+    written, not cut off; the same bytes with no writer behind them (the console killed) are cut off."""
+    import shutil
+
+    from server.recording.summary import summarize, summary_lines
+
+    path = tmp_path / "live.mcap"
+    w = _write(path, 3, flush_s=0.05, chunk_size=64 * 1024 * 1024)
+    try:
+        wait_for(lambda: _readable(path), timeout=WAIT_S, interval=0.02, what="the flushed chunk")
+        live = read_recording(path)
+        assert live.writing and not live.complete and live.damage is None
+        assert live.problem.startswith("live.mcap is being written (a console records into it now): 3 messages read so far")
+        assert summary_lines(summarize(live))[0].endswith("3 messages (being written)")
+        shutil.copyfile(path, tmp_path / "left.mcap")  # the same bytes, nobody writing them
+    finally:
+        w.close()
+    left = read_recording(tmp_path / "left.mcap")
+    assert not left.writing and not left.complete and left.problem.startswith("left.mcap was cut off")
+    assert summary_lines(summarize(left))[0].endswith("(cut off)")
+    closed = read_recording(path)
+    assert closed.complete and not closed.writing and closed.problem is None
+
+
+def _readable(path) -> bool:
+    try:
+        return bool(read_recording(path).messages)
+    except InputError:  # the header only so far
+        return False
+
+
 def test_a_file_that_is_not_a_recording_is_refused_in_one_sentence(tmp_path) -> None:
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"\x00" * 100)

@@ -52,15 +52,15 @@ def test_generation_follows_the_arm_and_flushes_on_release(session: Session, clo
         Frame.WORLD: np.eye(4), Frame.BASE: np.linalg.inv(cell.world_T_base), Frame.WORK: np.linalg.inv(cell.frame("work")),
     }[draw.frame]
     expected = (out_T_world @ world_tcp)[:3, 3]
-    # within 0.01 mm: the stroke ends on the arm's last sample, written with 2 mm decimals (0.005 mm)
-    np.testing.assert_allclose(np.array(draw.position), expected, atol=1e-5)
+    # within 0.05 mm: the stroke ends on the arm's last sample, written to the 0.1 mm the operator controls
+    np.testing.assert_allclose(np.array(draw.position), expected, atol=0.5e-4)  # the text's 0.1 mm
     for _ in range(6):
         session.arm.jog_joint(1, np.radians(2.0))
         clock.advance(0.02)
     program = session.arm.release()
     assert [e.kind for e in program.entries] == ["DRAW", "DRIVE", "EMPTY"]
     assert program.entries[1].statement.joint == 1
-    assert program.entries[1].statement.target == pytest.approx(session.arm.state.q[0], abs=math.radians(0.0005) + 1e-12)  # the text holds 0.001 deg
+    assert program.entries[1].statement.target == pytest.approx(session.arm.state.q[0], abs=math.radians(0.05) + 1e-12)  # the text holds 0.1 deg
     assert any(isinstance(e, ArmChanged) for e in events)
     assert any(isinstance(e, CollisionChanged) for e in events)
     assert any(isinstance(e, ProgramChanged) for e in events)
