@@ -26,6 +26,10 @@ from server.recording import records
 from server.recording.reader import Recording
 
 
+PATH_FOLLOWED_M = 0.005
+"""A robot within this of the planned path followed it (a gap at the same time beyond it is timing)."""
+
+
 @dataclass(frozen=True)
 class StatementTiming:
     number: int
@@ -71,6 +75,23 @@ class RangeComparison:
     def largest_time_gap(self) -> StatementTiming | None:
         return max(self.timings, key=lambda s: abs(s.late_s)) if self.timings else None
 
+    def gap_explained(self) -> str | None:
+        """What the two gaps together say, in a sentence: a gap at the same time with the robot on
+        the planned path is timing (it ran ahead of or behind the plan: force-guided moves and tasks
+        take the time their contact takes), not a deviation; a gap from the path is where it went
+        elsewhere. None when there is nothing to compare."""
+        at_time, from_path = self.largest_gap_m, self.largest_path_gap_m
+        if at_time is None or from_path is None:
+            return None
+        if from_path <= PATH_FOLLOWED_M and at_time > PATH_FOLLOWED_M:
+            return (f"the robot stayed within {1e3 * PATH_FOLLOWED_M:.0f} mm of the planned path: the gap at the same "
+                    f"time is timing, not a deviation (it was ahead of or behind the plan; force-guided moves and "
+                    f"tasks take the time their contact takes)")
+        if from_path > PATH_FOLLOWED_M:
+            return (f"the robot left the planned path by up to {1e3 * from_path:.1f} mm (a task's own motion, a "
+                    f"compliant correction, or a stop): see where on the timeline")
+        return "the robot followed the plan in place and in time"
+
     def lines(self) -> list[str]:
         """The comparison in sentences (the replay page shows them)."""
         out = [f"Range {self.index + 1}: " + "; ".join(self.texts)]
@@ -80,6 +101,8 @@ class RangeComparison:
             out.append(f"largest gap at the same time: {1e3 * self.largest_gap_m:.1f} mm at {self.largest_gap_at_s:.2f} s")
         if self.largest_path_gap_m is not None:
             out.append(f"largest gap from the planned path: {1e3 * self.largest_path_gap_m:.1f} mm")
+        if (why := self.gap_explained()) is not None:
+            out.append(why)
         worst = self.largest_time_gap
         if worst is not None:
             when = "later" if worst.late_s >= 0 else "earlier"

@@ -150,6 +150,20 @@ def test_the_plan_and_the_reported_motion_are_compared_in_space_and_time(recordi
     assert "5.0 mm at 0.50 s" in text and "0.12 s later than planned" in text
 
 
+def test_the_comparison_says_whether_a_gap_is_timing_or_a_deviation(recording_path: Path) -> None:
+    """A successful run's 140 mm "largest gap" with the robot on the planned path is timing (it ran
+    behind or ahead of the plan), and the page says so; a gap from the path is called a deviation."""
+    import dataclasses
+
+    [c] = compare_ranges(read_recording(recording_path), load_cell(DEFAULT_CELL).world_T_base)
+    timing = dataclasses.replace(c, largest_gap_m=0.1406, largest_path_gap_m=0.0012)
+    assert any(line.startswith("the robot stayed within 5 mm of the planned path: the gap at the same time is timing")
+               for line in timing.lines())
+    away = dataclasses.replace(c, largest_gap_m=0.1406, largest_path_gap_m=0.031)
+    assert any(line.startswith("the robot left the planned path by up to 31.0 mm") for line in away.lines())
+    assert "the robot followed the plan in place and in time" in c.lines()  # the fixture's 5 mm both ways
+
+
 def test_the_player_seeks_steps_and_plays_to_the_end(recording_path: Path) -> None:
     player = ReplayPlayer(open_replay(recording_path), recording_path.parent)
     seen = []
