@@ -69,7 +69,8 @@ def page_slice(total: int, page: int, size: int = SHOWN) -> tuple[int, int, int]
 
 
 def sent_markdown(view: SentListView, now: float | None = None, page: int = 0) -> str:
-    """One page of the sent list (0: the newest statements)."""
+    """One page of the sent list (0: the newest statements), newest first: what runs now and
+    what waits behind it stay at the top, never below the fold."""
     now = time.time() if now is None else now
     if not view.items:
         return "Nothing sent yet."
@@ -80,7 +81,7 @@ def sent_markdown(view: SentListView, now: float | None = None, page: int = 0) -
     if pages > 1:
         which = " (newest)" if page == 0 else " (oldest)" if page == pages - 1 else ""
         lines.append(f"Page {page + 1} of {pages}{which}: sent {start + 1}-{stop} of {total}")
-    lines += [sent_line(item, now) for item in view.items[start:stop]]
+    lines += [sent_line(item, now) for item in reversed(view.items[start:stop])]
     return "  \n".join(lines)
 
 
@@ -123,6 +124,9 @@ class MonitorPanel:
     def show_program(self, view: ProgramView) -> None:
         self.range.follow(view)
         self.needs.refresh()
+        empty = view.empty_index == 0  # nothing to submit: the button says so by being off
+        if self.submit.disabled != empty:
+            self.submit.disabled = empty
 
     def show(self, view: SentListView) -> None:
         self._view = view

@@ -28,6 +28,14 @@ from webui.notice_log import NoticeBoard, session_kind
 
 log = logging.getLogger(__name__)
 
+RECOVERY_STATES = {
+    "Resume": frozenset({"stopped", "fault"}),
+    "Skip": frozenset({"running", "stopped", "fault"}),
+    "Abort": frozenset({"running", "stopped", "fault"}),
+}
+"""The robot states (as telemetry shows them) in which each recovery button is on: Resume only
+for a robot held by a stop, a halt or a fault; Skip and Abort for one with a statement at hand.
+Idle, disconnected or without telemetry, none is (there is nothing they would act on)."""
 AUTO = "auto (by zone)"
 REGIME_LABELS = {Regime.FREE: "ONLINE (free zone)", Regime.QUASI: "OFFLINE (quasi-operation)",
                  Regime.OPERATION: "SINGLE STEP (operation)"}
@@ -69,8 +77,15 @@ class StatusBar:
         self.session = session
         self.actions = actions
         gui = server.gui
-        self.recovery = gui.add_button_group("Recovery", ("Resume", "Skip", "Abort"))
-        self.recovery.on_click(self._on_recovery)
+        # each on only when it can act on what the operator sees (``RECOVERY_STATES``)
+        self.recovery = {
+            name: gui.add_button(name, disabled=True, hint=hint)
+            for name, hint in (("Resume", "let the stopped robot go on with what it holds"),
+                               ("Skip", "drop the statement the robot runs or holds now"),
+                               ("Abort", "drop the current statement and everything the robot holds"))
+        }
+        for button in self.recovery.values():
+            button.on_click(self._on_recovery)
         self.link = gui.add_markdown("Link: -")
         self.regime_line = gui.add_markdown("Regime: -")
         self.regime = gui.add_dropdown("Regime", [AUTO] + [r.value for r in Regime], initial_value=AUTO)
@@ -95,7 +110,7 @@ class StatusBar:
 
     # -- clicks -------------------------------------------------------------------------------
     def _on_recovery(self, event: viser.GuiEvent) -> None:
-        choice = event.target.value
+        choice = event.target.label
         call = {"Resume": self.session.recovery.resume, "Skip": self.session.recovery.skip, "Abort": self.session.recovery.abort}[choice]
         self.actions.run(choice.lower(), call)
 
@@ -115,7 +130,12 @@ class StatusBar:
     # -- session events -----------------------------------------------------------------------
     def show_link(self, link: LinkView) -> None:
         self.link.content = link_text(link)
-        self.board.robot_state(link.robot_state if link.connected else None)
+        state = link.robot_state if link.connected else None
+        self.board.robot_state(state)
+        for name, button in self.recovery.items():
+            off = state not in RECOVERY_STATES[name]
+            if button.disabled != off:
+                button.disabled = off
 
     def show_regime(self, view: RegimeView) -> None:
         self.regime_line.content = regime_text(view)

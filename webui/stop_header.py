@@ -4,7 +4,7 @@ fixed header; a standalone panel is its own scroll region).
 
 Pressing STOP shows at once "STOP sent, arrives in about N s" (N: the link's measured one-way
 delay), and the robot's confirmation when its answer is back; that line stands while the robot
-rests after it (stopped, at fault, idle) and goes once the robot runs again. The state line is coloured: red
+holds after it (stopped, at fault) and goes once it leaves that hold (resumed, skipped, aborted). The state line is coloured: red
 for a fault or a lost link, amber for stopped. After a contact fault it offers "Back away".
 """
 
@@ -128,12 +128,13 @@ class StopHeader:
             self._clear_answer_when_running(link)
 
     def _clear_answer_when_running(self, link: LinkView) -> None:
-        """The answer to STOP describes a robot at rest: once the robot has been seen at rest
-        after it and runs again, the answer is over (the notice log keeps it)."""
+        """The answer to STOP describes a robot held by it: once the robot has been seen held
+        (stopped, at fault) and then leaves that hold (a resume: running again, or idle with
+        nothing to run; a skip; an abort), the answer is over (the notice log keeps it)."""
         state = link.robot_state if link.connected else None
-        if state in ("stopped", "fault", "idle"):
+        if state in ("stopped", "fault"):
             self._rested = True
-        elif state == "running" and self._rested:
+        elif state in ("running", "idle") and self._rested:
             self.ack.content = ""
             self._answered = False
 

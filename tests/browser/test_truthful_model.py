@@ -101,7 +101,7 @@ def test_the_legend_names_the_ghost_in_a_colour_of_its_own(ui: ConsolePage) -> N
         assert np.linalg.norm(swatches["ghost"] - swatches[other]) > 150, (other, swatches)
 
 
-def test_the_robots_answers_go_once_the_next_move_runs(ui: ConsolePage) -> None:
+def test_the_answer_to_stop_goes_once_the_robot_leaves_the_hold(ui: ConsolePage) -> None:
     api = ui.console.api
     ui.text_appears(r"Link: connected", timeout=60)
     wait_for(lambda: api("GET", "/api/link").json()["robot_state"] == "idle", 60, what="the robot idle")
@@ -109,20 +109,18 @@ def test_the_robots_answers_go_once_the_next_move_runs(ui: ConsolePage) -> None:
     ui.click("STOP")  # an idle robot stops too: it holds until resumed
     ui.text_appears(r"Robot confirmed STOP after", timeout=30)
     wait_for(lambda: api("GET", "/api/link").json()["robot_state"] == "stopped", 30, what="the robot stopped")
-    ui.click("Resume")
+    resume = ui.page.get_by_role("button", name="Resume", exact=True)
+    ui.click("Resume")  # on: the robot holds
     wait_for(lambda: api("GET", "/api/link").json()["robot_state"] == "idle", 30, what="the robot idle again")
-    ui.click("Resume")  # nothing to resume now
-    try:
-        wait_for(lambda: "nothing to resume (robot idle)" in ui.notice(), timeout=30, what="the robot's answer: nothing to resume")
-    except AssertionError:
-        raise AssertionError(f"notice {ui.notice()!r}; body {ui.page.inner_text('body')[:3000]!r}") from None
-    assert "Robot confirmed STOP" in ui.page.inner_text("body")  # the robot has not moved since
+    # the answer to STOP is over once the robot left the hold, even with nothing to run, and
+    # Resume is off: there is nothing to resume
+    wait_for(lambda: "Robot confirmed STOP" not in ui.page.inner_text("body") and resume.is_disabled(), timeout=30,
+             what="the STOP answer gone and Resume off on an idle robot")
     before = _sent_count(ui)
     ui.insert_statements(PIECES[0])  # above the peg, down to contact, grasp
     ui.submit_range(1, len(PIECES[0]))
-    wait_for(lambda: "nothing to resume" not in ui.notice() and "Robot confirmed STOP" not in ui.page.inner_text("body"),
-             timeout=45, what="the idle robot's answers gone while the piece runs")
-    assert any(s["status"] in ("running", "done") for s in api("GET", "/api/sent").json()["items"][before:])
+    wait_for(lambda: any(s["status"] in ("running", "done") for s in api("GET", "/api/sent").json()["items"][before:]),
+             timeout=45, what="the piece running after the resume")
     ui.wait_sent_final(before + len(PIECES[0]))
 
 
@@ -142,10 +140,10 @@ def test_a_refused_submit_goes_with_the_next_good_one_and_the_log_keeps_both(ui:
     log = ui.page.locator("[data-notice-log]")
     log.wait_for(state="visible")
     text = log.inner_text()
-    refused, idle = text.find("submit refused"), text.find("nothing to resume")
-    assert 0 <= refused < idle, text  # newest first
+    refused, resumed = text.find("submit refused"), text.find("robot applied resume")
+    assert 0 <= refused < resumed, text  # newest first: the earlier test's resume further down
     assert re.search(r"\d\d:\d\d:\d\d\s+error\s+submit refused", text), text
-    assert re.search(r"\d\d:\d\d:\d\d\s+warning\s+robot did not apply resume", text), text
+    assert re.search(r"\d\d:\d\d:\d\d\s+info\s+robot applied resume", text), text
 
 
 def test_after_grasp_and_extract_the_virtual_arm_holds_the_peg_where_the_robot_does(ui: ConsolePage) -> None:

@@ -1,0 +1,78 @@
+"""What the header and the Submit tab offer follows what the robot and the program are (issue
+37's smaller points): Resume, Skip and Abort are on only when they can act on something, the
+robot's answer to STOP goes once the robot leaves the hold, the sent list shows the newest first,
+and Submit is off with nothing to submit."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import viser
+
+from server.console import LinkChanged, LinkView, SentListView, SentStatus, SentView, Session
+from shared.cells.loader import DEFAULT_CELL, load_cell
+from shared.language.parser import parse_program
+from support import free_port
+from webui.console import build_console
+from webui.monitor_panel import sent_markdown
+
+
+@pytest.fixture(scope="module")
+def console():
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    session = Session(load_cell(DEFAULT_CELL))
+    try:
+        yield session, build_console(server, session)
+    finally:
+        session.close()
+        server.stop()
+
+
+def _link(state: str | None, *, pending: list[str] | None = None, connected: bool = True) -> LinkView:
+    return LinkView(configured=True, connected=connected, robot_state=state, status="live" if connected else "down",
+                    recovery_pending=pending or [])
+
+
+@pytest.mark.parametrize("state, on", [
+    ("idle", set()), ("running", {"Skip", "Abort"}), ("stopped", {"Resume", "Skip", "Abort"}),
+    ("fault", {"Resume", "Skip", "Abort"}), (None, set()),
+])
+def test_recovery_buttons_are_on_only_when_they_can_act(console, state, on) -> None:
+    session, page = console
+    session.bus.emit([LinkChanged(link=_link(state))])
+    assert {name for name, button in page.status.recovery.items() if not button.disabled} == on
+    session.bus.emit([LinkChanged(link=_link("stopped", connected=False))])  # a lost link: nothing to act on
+    assert all(button.disabled for button in page.status.recovery.values())
+
+
+def test_the_answer_to_stop_goes_once_the_robot_leaves_the_hold_even_to_idle(console) -> None:
+    session, page = console
+    header = page.stop
+    header._sent_at = time.monotonic()  # noqa: SLF001 - a STOP left (press_stop needs a robot)
+    session.bus.emit([LinkChanged(link=_link("idle", pending=["stop"]))])
+    session.bus.emit([LinkChanged(link=_link("stopped"))])  # the robot's acknowledgement is back
+    assert header.ack.content.startswith("**Robot confirmed STOP**")
+    session.bus.emit([LinkChanged(link=_link("stopped"))])
+    assert header.ack.content.startswith("**Robot confirmed STOP**")  # it stands while the robot holds
+    session.bus.emit([LinkChanged(link=_link("idle"))])  # resumed with nothing to run
+    assert header.ack.content == ""
+
+
+def test_the_sent_list_shows_the_newest_first() -> None:
+    statements = parse_program("DRIVE J1 TO 1 deg\nDRIVE J1 TO 2 deg\nDRIVE J1 TO 3 deg").statements
+    items = [SentView(id=i + 1, number=i + 1, text=f"DRIVE J1 TO {i + 1} deg", statement=st, status=status, submitted_at=0.0)
+             for i, (st, status) in enumerate(zip(statements, (SentStatus.DONE, SentStatus.RUNNING, SentStatus.RECEIVED)))]
+    text = sent_markdown(SentListView(items=items, pending=2), now=1.0)
+    lines = text.split("  \n")
+    assert lines[0] == "3 sent, 2 pending"
+    assert [line.split()[0] for line in lines[1:]] == ["#3", "#2", "#1"]  # what waits, what runs, what ran
+
+
+def test_submit_is_off_with_nothing_to_submit(console) -> None:
+    session, page = console
+    assert session.program.view().empty_index == 0  # the session starts with an empty program
+    page.monitor.show_program(session.program.view())  # what a connected page is sent
+    assert page.monitor.submit.disabled
+    page.monitor.show_program(session.program.insert(parse_program("DRIVE J1 TO 5 deg").statements[0]))
+    assert not page.monitor.submit.disabled
