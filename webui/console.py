@@ -47,7 +47,9 @@ from server.console import (
 )
 from server.console.events import TaskChanged, WorkProgress
 from server.trials.service import TrialBatches
+from shared.cells.framing import cell_views
 from webui.actions import Actions
+from webui.camera_presets import CameraPresets
 from webui.ghost import RemoteGhost
 from webui.legend import Legend
 from webui.locate_panel import LocatePanel
@@ -70,6 +72,9 @@ from webui.terrain_panel import TerrainPanel
 log = logging.getLogger(__name__)
 
 PANEL_WIDTH = 430
+# The camera the console opened with before it framed the work (shared.cells.framing): looking at
+# the tool from the front (-y), world x left to right. Kept for tests that grab the gizmo at a
+# known place on the canvas (they open the page with this camera in viser's URL parameters).
 CAMERA_OFFSET = (0.0, -1.1, 0.3)  # m, from the tool at start
 TERRAIN_CAMERA_OFFSET = (0.35, -0.7, 0.35)  # m: a rover's arm is small; look down on it and the ground
 
@@ -95,6 +100,7 @@ class Console:
     banner: RegimeBanner | None = None
     stream: StreamIndicator | None = None
     task: TaskPanel | None = None
+    views: CameraPresets | None = None
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()  # events arrive on several threads; draw one at a time
@@ -123,6 +129,8 @@ class Console:
     def _route(self, event) -> None:
         if isinstance(event, ArmChanged):
             self._arm = event.arm
+            if self.views is not None:  # where the tool is; the cameras of the pages that follow it
+                self.views.follow(event.arm.world_T_tcp)
             if self._watched():  # the panel's numbers and the gizmo's place: for a page to see
                 self.drive.show_arm(event.arm)
             self._draw_arm()
@@ -300,12 +308,7 @@ def build_console(server: viser.ViserServer, session: Session, trials: TrialBatc
     with the session's events. Call once, after the session exists and before clients load."""
     server.gui.configure_theme(show_share_button=False, control_width="large")
     server.gui.set_panel_label("teleprog console")
-    # look at the tool from the front (-y), slightly above: world x runs left to right on screen
-    world_p_tool = np.asarray(session.arm.view().world_T_tcp)[:3, 3]
-    server.initial_camera.look_at = tuple(world_p_tool)
     offers = session.offers()
-    offset = TERRAIN_CAMERA_OFFSET if offers.terrain else CAMERA_OFFSET
-    server.initial_camera.position = tuple(world_p_tool + np.array(offset))
     scene = CellScene(server, session.cell)
     ghost = RemoteGhost(server, session.robot, session.cell.world_T_base)
     path = PredictedPath(server)
@@ -321,6 +324,9 @@ def build_console(server: viser.ViserServer, session: Session, trials: TrialBatc
         status = holder["status"] = StatusBar(server, session, actions, board=board)
     tabs = server.gui.add_tab_group()
     with tabs.add_tab("Drive", viser.Icon.HAND_MOVE):
+        # the camera: a view that frames the cell's work, presets per page (shared.cells.framing)
+        views = CameraPresets(server, cell_views(session.cell))
+        views.set_initial()
         drive = DrivePanel(server, session, scene, actions)
         stream = StreamIndicator(server.gui)  # while a drag runs on the robot, it says so here
         stream.watch(drive.gizmo)
@@ -346,7 +352,7 @@ def build_console(server: viser.ViserServer, session: Session, trials: TrialBatc
             terrain = TerrainPanel(server, session, actions)
         overlay = TerrainOverlay(server)
     console = Console(server, session, scene, ghost, path, collision, status, drive, program, preview, monitor,
-                      terrain, overlay, stop, banner, stream, task)
+                      terrain, overlay, stop, banner, stream, task, views)
     # first picture from the session's current state, then follow its events
     snap = session.snapshot()
     for event in (

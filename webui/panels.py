@@ -138,7 +138,8 @@ class DrivePanel:
         if view.joint_limit:
             lines.append(f"**Joint limit:** {view.joint_limit}")
         if view.min_distance is not None and view.nearest is not None and not view.colliding:
-            lines.append(f"Nearest: {view.nearest[0]} / {view.nearest[1]} at {view.min_distance * 1e3:.1f} mm")
+            # the object (or the ground) the tool is nearest; the arm's own links never count
+            lines.append(f"Nearest: {view.nearest[1]} at {view.min_distance * 1e3:.1f} mm")
         if view.zone_object is not None and view.zone_distance is not None:
             lines.append(f"Zone: {view.zone.value} ({view.zone_object} at {view.zone_distance * 1e3:.0f} mm)")
         self.collision.content = "  \n".join(lines)

@@ -22,6 +22,7 @@ import viser
 from server.recording.reader import list_recordings
 from server.replay.player import SPEEDS, OpenedReplay, ReplayPlayer
 from server.replay.timeline import Moment
+from shared.cells.framing import cell_views
 from shared.errors import InputError
 from webui.ghost import RemoteGhost
 from webui.monitor_panel import sent_markdown
@@ -57,10 +58,9 @@ class ReplayPage:
         server, timeline, cell = self.server, opened.timeline, opened.cell
         server.gui.configure_theme(show_share_button=False, control_width="large")
         server.gui.set_panel_label("teleprog replay (read-only)")
-        start = timeline.at(timeline.start)
-        tool = np.asarray(start.world_T_tool)[:3, 3] if start.world_T_tool is not None else np.asarray(cell.world_T_base)[:3, 3]
-        server.initial_camera.look_at = tuple(tool)
-        server.initial_camera.position = tuple(tool + np.array((0.0, -1.1, 0.3)))
+        front = cell_views(cell).front  # the console's default camera: the cell's work (shared.cells.framing)
+        server.initial_camera.look_at = tuple(front.look_at)
+        server.initial_camera.position = tuple(front.position)
         self.scene = CellScene(server, cell)
         self.ghost = RemoteGhost(server, cell.robot, cell.world_T_base)
         self.path = PredictedPath(server)

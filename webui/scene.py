@@ -16,7 +16,8 @@ import viser
 from shared.cells.cell import Cell
 from shared.collision.mesh_model import BodyMesh, body_mesh
 from shared.robots.shapes import link_meshes
-from webui.scene_util import colored, place
+from shared.terrain.cell import TERRAIN_OBJECT
+from webui.scene_util import colored, height_shaded, place
 
 FRAME_AXES = ("world", "base", "work", "tool")
 
@@ -55,7 +56,9 @@ class CellScene:
             place(node, obj.world_T_object)
             mesh = link_meshes(obj.shapes)
             if mesh is not None:
-                server.scene.add_mesh_trimesh(f"/cell/{obj.name}/mesh", colored(mesh, obj.color))
+                # a terrain shaded by height (its relief, and apart from the grid); the rest in its colour
+                drawn = height_shaded(mesh, obj.world_T_object) if obj.name == TERRAIN_OBJECT else colored(mesh, obj.color)
+                server.scene.add_mesh_trimesh(f"/cell/{obj.name}/mesh", drawn)
             self._register_body(obj.name, f"/cell/{obj.name}", obj.shapes)
             self._objects[obj.name] = node
             self._object_shown[obj.name] = obj.world_T_object

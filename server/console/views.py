@@ -257,8 +257,9 @@ class CollisionView(_View):
     colliding: bool
     pairs: list[tuple[str, str]] = Field(default_factory=list)
     triangles: dict[str, list[int]] = Field(default_factory=dict, description="interfering triangle ids per body")
-    min_distance: float | None = None
-    nearest: tuple[str, str] | None = None
+    min_distance: float | None = Field(None, description="m, from the tool to the nearest object or the ground")
+    nearest: tuple[str, str] | None = Field(
+        None, description="the tool body and the object (or ground) nearest it; never two links of the arm")
     zone: Regime = Field(description="control zone from tool-object distances")
     zone_object: str | None = None
     zone_distance: float | None = None
@@ -448,8 +449,9 @@ class ActionView(_View):
 class DeviationView(_View):
     """A robot report the task net does not allow."""
 
-    kind: Literal["missing", "state"] = Field(description="missing: a statement ended without the action it should make; "
-                                                         "state: the robot's cell contradicts its marking")
+    kind: Literal["missing", "state", "markings"] = Field(
+        description="missing: a statement ended without the action it should make; state: the robot's cell "
+                    "contradicts its marking; markings: with the robot at rest, the virtual marking is not the robot's")
     expected: str | None = Field(None, description="the transition (action) that was expected")
     statement: int | None = None
     status: str | None = Field(None, description="the statement's final status, for a missing action")

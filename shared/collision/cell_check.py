@@ -30,9 +30,11 @@ class CellReport:
 
     ``pairs``: touching bodies (the ground is named ``GroundChecker.NAME``); ``triangles``: per
     body, the ids of its triangles that interfere (scene bodies only); ``min_distance`` and
-    ``nearest``: the smallest tool-to-anything distance (m) and its pair; ``zone`` with the
-    object that sets it and that object's distance to the tool (m; ``None`` when no object
-    counts)."""
+    ``nearest``: the smallest distance (m) from the tool (the last link, or the object it holds)
+    to an object or the ground, and that pair, the tool first (``None`` in a cell with nothing
+    but the arm: the arm's own links are never the nearest, the operator asks what the tool is
+    about to meet); ``zone`` with the object that sets it and that object's distance to the tool
+    (m; ``None`` when no object counts)."""
 
     colliding: bool
     pairs: tuple[tuple[str, str], ...]
@@ -60,6 +62,7 @@ class CellCollision:
         self.scene = scene if scene is not None else SceneModel.from_cell(cell, exclude=exclude)
         self.tool_body = f"link{cell.robot.dof}"
         self._links = frozenset(b.name for b in self.scene.bodies if b.kind == "link")
+        self._not_self: dict[str | None, np.ndarray] = {}  # per held object: the pairs "Nearest" may name
 
     def new_data(self) -> SceneData:
         return self.scene.new_data()
@@ -86,11 +89,9 @@ class CellCollision:
         report = self.scene.check(q, object_poses=poses, distances=tools, skip=self._skip(held, poses), data=data)
         zs = zone(self.scene, self.cell, q, held=[held] if held else (), object_poses=poses, report=report)
         bodies = {n for p in report.pairs for n in (p.a, p.b)}
-        nearest = report.nearest
         colliding = report.colliding
         pairs = [(p.a, p.b) for p in report.pairs]
-        min_distance = report.min_distance
-        nearest_pair = (nearest.a, nearest.b) if nearest else None
+        min_distance, nearest_pair = self._nearest(report, tools, held)
         zone_now, zone_object, zone_distance = zs.zone, zs.object, zs.distance
         contact = None
         if self.ground is not None:
@@ -110,6 +111,23 @@ class CellCollision:
             min_distance=min_distance, nearest=nearest_pair, zone=zone_now, zone_object=zone_object,
             zone_distance=float(zone_distance) if np.isfinite(zone_distance) else None, scene=report, ground=contact,
         )
+
+    def _not_self_pairs(self, held: str | None) -> np.ndarray:
+        """Per pair of the scene: not a distance of the arm to itself (two of its links, or a
+        link and the object it holds)."""
+        keep = self._not_self.get(held)
+        if keep is None:
+            arm = self._links | ({held} if held else set())
+            keep = self._not_self[held] = np.array([not (a in arm and b in arm) for a, b in self.scene.pair_names], dtype=bool)
+        return keep
+
+    def _nearest(self, report: CollisionReport, tools: list[str], held: str | None) -> tuple[float | None, tuple[str, str] | None]:
+        """The tool's nearest object (the arm itself never counts), tool body first."""
+        nearest = report.nearest_among(self._not_self_pairs(held))
+        if nearest is None:
+            return None, None
+        a, b = (nearest.a, nearest.b) if nearest.a in tools else (nearest.b, nearest.a)
+        return nearest.distance, (a, b)
 
     def touching(self, q: np.ndarray, *, object_poses: Mapping[str, np.ndarray] | None = None, held: str | None = None,
                  data: SceneData | None = None, triangles: bool = False) -> tuple[tuple[tuple[str, str], ...], CollisionReport]:

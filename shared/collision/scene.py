@@ -135,6 +135,14 @@ class CollisionReport:
                 self._nearest = (d, PairDistance(a, b, d, self._res[p, 1:4].copy(), self._res[p, 4:7].copy()))
         return self._nearest
 
+    def nearest_among(self, keep: np.ndarray) -> PairDistance | None:
+        """The nearest pair among those whose distance was asked and that ``keep`` (one bool per
+        pair of the model's ``pair_names``) keeps; ``None`` when none is left."""
+        masked = np.where((self._mode == 2) & keep, self._res[:, 0], np.inf)
+        if not len(masked) or not np.isfinite(masked).any():
+            return None
+        return self._pair_distance(int(np.argmin(masked)))
+
     @property
     def min_distance(self) -> float | None:
         return self._nearest_pair()[0]

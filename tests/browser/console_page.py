@@ -15,7 +15,16 @@ from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from support import wait_for  # noqa: F401 - the page tests import it from here too
 
+def option_name(label: str, option: str) -> str:
+    """The text of a dropdown's option for ``option``: the Regime selector names a regime in the
+    operator's words (``free`` -> ``ONLINE (free zone)``); other selectors show their values."""
+    from webui.status_bar import regime_option
+
+    return regime_option(option) if label == "Regime" else option
+
+
 HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message throttle
+ENABLED_S = 60.0  # s for the page to turn a control on (it follows the link, 4 updates a second; a loaded machine draws slowly)
 
 # Pointer moves dispatched on the 3D canvas at a fixed rate, a sine sweep along x: the page's own
 # pointer handling (three.js raycasting in drei's PivotControls), its throttled sender and
@@ -55,12 +64,30 @@ class ConsolePage:
         return self.console.api("GET", "/api/session").json()
 
     # -- page --------------------------------------------------------------------------------
-    def open(self, query: str = "") -> None:
-        """Open the console's page; ``query`` (e.g. ``"fixedDpr=0.1"``) goes to viser's page."""
+    def open(self, query: str = "", camera: str = "tool") -> None:
+        """Open the console's page; ``query`` (e.g. ``"fixedDpr=0.1"``) goes to viser's page.
+        ``camera="tool"``: the page starts looking at the tool from ``CAMERA_OFFSET`` (the
+        terrain's offset in a terrain cell), world x to the right, so the gizmo's handles lie
+        where ``drag_gizmo_x`` and the tests' projections expect them; ``"default"``: the
+        console's own camera, which frames the cell's work (``shared.cells.framing``)."""
+        if camera == "tool":
+            query = "&".join(q for q in (query, self.tool_camera_query()) if q)
         self.page.goto(self.console.url + ("/viser/?" + query if query else "/"))
         self.page.wait_for_selector("canvas", timeout=30_000)
         self.page.get_by_role("button", name="STOP").wait_for(timeout=30_000)
         self.dismiss_notices(wait=15.0)
+
+    def tool_camera_query(self) -> str:
+        """viser's URL parameters for a camera looking at the tool as it stands now from
+        ``CAMERA_OFFSET`` (``TERRAIN_CAMERA_OFFSET`` where the cell has a terrain)."""
+        from webui.console import CAMERA_OFFSET, TERRAIN_CAMERA_OFFSET
+
+        tool = [row[3] for row in self.session()["arm"]["world_T_tcp"][:3]]
+        terrain = self.console.api("GET", "/api/terrain").status_code == 200
+        offset = TERRAIN_CAMERA_OFFSET if terrain else CAMERA_OFFSET
+        eye = [t + o for t, o in zip(tool, offset)]
+        return "initialCameraPosition={}&initialCameraLookAt={}".format(
+            ",".join(f"{v:.6f}" for v in eye), ",".join(f"{v:.6f}" for v in tool))
 
     def dismiss_notices(self, wait: float = 0.0) -> None:
         """Close the browser's own notices (e.g. "software WebGL rendering"): they cover the
@@ -81,6 +108,9 @@ class ConsolePage:
         """A mouse click on ``target`` (see ``quick_clicks``)."""
         if self.quick_clicks:
             target.wait_for(state="visible")
+            # a forced click skips Playwright's wait for an enabled control: wait for it here (a
+            # button the page turns on with the next link update, e.g. Resume once the robot holds)
+            wait_for(target.is_enabled, timeout=ENABLED_S, interval=0.05, what="the control enabled")
             time.sleep(HAND_S)
             target.click(force=True)
         else:
@@ -109,7 +139,7 @@ class ConsolePage:
 
     def choose(self, label: str, option: str, exact: bool = True) -> None:
         self.press(self.row(label).locator("input").first)
-        self.page.get_by_role("option", name=option, exact=exact).first.click()  # it slides open: wait
+        self.page.get_by_role("option", name=option_name(label, option), exact=exact).first.click()  # it slides open: wait
 
     def set_number(self, label: str, value: float) -> None:
         """Type into a number input (or a slider's number box) and press Enter."""

@@ -63,11 +63,13 @@ def _peg_at_tool(cell) -> np.ndarray:
 
 
 def _expected(cell, scene, q, tool: str):
-    """From every distance the scene gives at ``q``: the tool's smallest distance and its pair,
-    and the zone with the cell file's boundaries applied here (the most restrictive object,
-    the nearest first), the object that sets it and its distance."""
+    """From every distance the scene gives at ``q``: the tool's smallest distance to an object
+    and its pair (the arm's own links are no object), and the zone with the cell file's
+    boundaries applied here (the most restrictive object, the nearest first), the object that
+    sets it and its distance."""
     full = scene.check(q, distances="all")
-    from_tool = {pair: d.distance for pair, d in full.distances.items() if tool in pair}
+    links = {f"link{i}" for i in range(cell.robot.dof + 1)}
+    from_tool = {pair: d.distance for pair, d in full.distances.items() if tool in pair and not set(pair) <= links}
     nearest = min(from_tool, key=from_tool.get)
     zones = []
     for obj in cell.object_names:
@@ -206,7 +208,45 @@ def test_a_rover_clear_of_the_ground_is_zoned_by_the_ground(rover) -> None:
     expected = "operation" if head <= limits.operation else "quasi" if head <= limits.quasi else "free"
     assert report.zone == expected and report.zone_object == ground.NAME
     assert report.zone_distance == pytest.approx(head, abs=1e-12)
-    # the smallest distance is the ground's or the scene's, whichever is nearer
-    scene_min = cc.scene.check(q, distances=[cc.tool_body]).min_distance
-    candidates = [d for d in (scene_min, contact.distance) if d is not None]
-    assert report.min_distance == pytest.approx(min(candidates), abs=1e-12)
+    # the nearest is the ground: the scene holds nothing else but the arm, whose own links are
+    # nearer to the tool here (a self-distance the operator does not ask about)
+    self_distance = cc.scene.check(q, distances=[cc.tool_body]).min_distance
+    assert self_distance is not None and self_distance < contact.distance
+    assert report.min_distance == pytest.approx(contact.distance, abs=1e-12)
+    assert report.nearest == (cc.tool_body, ground.NAME)
+
+
+def test_nearest_is_never_the_arms_own_link_pair() -> None:
+    """In every shipped cell, at home and at poses drawn over the joint ranges, "Nearest" names
+    the tool (or what it holds) and an object or the ground, never two of the arm's links; in a
+    cell with nothing but the arm it names nothing."""
+    rng = np.random.default_rng(7)
+    for path in sorted((ASSETS_DIR / "cells").glob("*.toml")):
+        cell = load_cell(path)
+        ground = GroundChecker(cell) if any(o.name == GroundChecker.NAME for o in cell.objects) else None
+        scene = SceneModel.from_cell(cell, leaf_size=8, exclude=(ground.NAME,) if ground else ())
+        cc = CellCollision(cell, scene=scene, ground=ground)
+        links = {f"link{i}" for i in range(cell.robot.dof + 1)}
+        objects = set(cell.object_names) | ({ground.NAME} if ground else set())
+        qs = [cell.q_home] + list(rng.uniform(cell.robot.lower, cell.robot.upper, size=(12, cell.robot.dof)))
+        for q in qs:
+            report = cc.check(q)
+            if not objects:
+                assert report.nearest is None and report.min_distance is None, cell.name
+                continue
+            assert report.nearest is not None, (cell.name, q)
+            tool, other = report.nearest
+            assert tool == cc.tool_body and other in objects and other not in links, (cell.name, report.nearest)
+            # and it is the nearest of the tool's distances to the objects
+            full = scene.check(q, distances=[cc.tool_body])
+            to_objects = [d.distance for pair, d in full.distances.items() if not set(pair) <= links]
+            if ground is not None:
+                to_objects.append(ground.contact(q).distance)
+            assert report.min_distance == pytest.approx(min(to_objects), abs=1e-9), cell.name
+
+
+def test_the_nearest_of_a_held_object_is_what_it_approaches(peg_cell, cc) -> None:
+    """Holding the peg, the tool is the gripper and the peg: the nearest pair starts with one of them."""
+    report = cc.check(peg_cell.q_home, object_poses={"peg": _peg_at_tool(peg_cell)}, held="peg")
+    assert report.nearest is not None and report.nearest[0] in {cc.tool_body, "peg"}
+    assert report.nearest[1] in {"table", "plate"}
