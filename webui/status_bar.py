@@ -39,6 +39,15 @@ Idle, disconnected or without telemetry, none is (there is nothing they would ac
 AUTO = "auto (by zone)"
 REGIME_LABELS = {Regime.FREE: "ONLINE (free zone)", Regime.QUASI: "OFFLINE (quasi-operation)",
                  Regime.OPERATION: "SINGLE STEP (operation)"}
+REGIME_BY_LABEL = {label: regime for regime, label in REGIME_LABELS.items()}
+
+
+def regime_option(value: str) -> str:
+    """The Regime selector's option for a regime's value (``free`` -> ``ONLINE (free zone)``):
+    the operator reads the regime's name and zone, never the API's raw value."""
+    return REGIME_LABELS[Regime(value)] if value in Regime._value2member_map_ else value
+
+
 MODE_LABELS = {DisplayMode.TELEPROGRAMMING: "teleprogramming", DisplayMode.TASK_PREVIEW: "task preview",
                DisplayMode.TELEPRESENCE: "telepresence"}
 
@@ -88,7 +97,7 @@ class StatusBar:
             button.on_click(self._on_recovery)
         self.link = gui.add_markdown("Link: -")
         self.regime_line = gui.add_markdown("Regime: -")
-        self.regime = gui.add_dropdown("Regime", [AUTO] + [r.value for r in Regime], initial_value=AUTO)
+        self.regime = gui.add_dropdown("Regime", [AUTO] + [REGIME_LABELS[r] for r in Regime], initial_value=AUTO)
         self.regime.on_update(self._on_regime)
         self.mode = gui.add_dropdown("Display", [m.value for m in DisplayMode],
                                      initial_value=DisplayMode.TELEPROGRAMMING.value)
@@ -117,8 +126,7 @@ class StatusBar:
     def _on_regime(self, event: viser.GuiEvent) -> None:
         if self._setting or event.client is None:
             return
-        value = self.regime.value
-        override = None if value == AUTO else Regime(value)
+        override = REGIME_BY_LABEL.get(self.regime.value)  # None: auto
         self.actions.run("regime override", lambda: self.session.modes.set_regime_override(override))
 
     def _on_mode(self, event: viser.GuiEvent) -> None:
@@ -139,7 +147,7 @@ class StatusBar:
 
     def show_regime(self, view: RegimeView) -> None:
         self.regime_line.content = regime_text(view)
-        wanted = AUTO if view.override is None else view.override.value
+        wanted = AUTO if view.override is None else REGIME_LABELS[view.override]
         if self.regime.value != wanted:
             self._setting = True
             try:

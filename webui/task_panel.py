@@ -84,12 +84,21 @@ def task_html(view: TaskView, picture: str = "") -> str:
     return "".join(parts)
 
 
+NET_LABEL_PX = 12  # the net's SVG labels (``shared.tasknet.layout``) at its natural size
+MIN_LABEL_PX = 11  # the smallest the page may draw them
+
+
 def net_picture(net: PTNet, true_atoms: list[str]) -> str:
     """The net as SVG, marked where ``true_atoms`` hold, scaled to the panel's width."""
     marked = set(true_atoms)
     m = np.array([1 if p.predicate in marked else 0 for p in net.places], dtype=np.int64)
     svg = net_to_svg(net, m)
-    svg = re.sub(r'<svg ([^>]*?)width="[^"]+" height="[^"]+"', r'<svg \1width="100%"', svg, count=1)
+    natural = float(re.search(r'<svg [^>]*?width="([\d.]+)"', svg).group(1))
+    # as wide as the panel, but never so small that its 12 px labels read under MIN_LABEL_PX: a
+    # wide net scrolls sideways instead (scaled to a 400 px panel, a 1,200 px net's labels were 4 px)
+    least = natural * MIN_LABEL_PX / NET_LABEL_PX
+    svg = re.sub(r'<svg ([^>]*?)width="[^"]+" height="[^"]+"',
+                 rf'<svg \1width="100%" style="min-width:{least:.0f}px"', svg, count=1)
     return f'<div data-task-net style="width:100%;overflow:auto">{svg}</div>'
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-from console_page import ConsolePage, wait_for
+from console_page import ConsolePage, option_name, wait_for
 from e2e.test_console_session import PIECES
 from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 from webui.ghost import GHOST_COLOR
@@ -65,7 +65,7 @@ def choose_regime(ui: ConsolePage, value: str) -> None:
     """The status bar's Regime selector, its option clicked once it shows (software WebGL on a
     loaded machine keeps the sliding list from ever counting as "stable")."""
     ui.press(ui.row("Regime").locator("input").first)
-    option = ui.page.get_by_role("option", name=value, exact=True).first
+    option = ui.page.get_by_role("option", name=option_name("Regime", value), exact=True).first
     option.wait_for(state="visible")
     ui.press(option)
     wait_for(lambda: ui.session()["regime"]["override"] == value, what=f"regime {value} chosen")

@@ -76,3 +76,36 @@ def test_submit_is_off_with_nothing_to_submit(console) -> None:
     assert page.monitor.submit.disabled
     page.monitor.show_program(session.program.insert(parse_program("DRIVE J1 TO 5 deg").statements[0]))
     assert not page.monitor.submit.disabled
+
+
+def test_the_regime_menu_names_regimes_in_the_operators_words(console) -> None:
+    """The menu offers ONLINE / OFFLINE / SINGLE STEP with their zones, never the API's raw values."""
+    session, page = console
+    options = list(page.status.regime.options)
+    assert options == ["auto (by zone)", "ONLINE (free zone)", "OFFLINE (quasi-operation)", "SINGLE STEP (operation)"]
+    from server.console import Regime
+
+    session.modes.set_regime_override(Regime.QUASI)
+    page.status.show_regime(session.modes.regime_view())
+    assert page.status.regime.value == "OFFLINE (quasi-operation)"
+    session.modes.set_regime_override(None)
+
+
+def test_the_task_nets_labels_never_draw_smaller_than_11_px() -> None:
+    """Scaled to a narrow panel, the net's 12 px labels shrank to about 6 px; it now keeps a
+    minimum width at which they read at least 11 px and scrolls sideways past it."""
+    import re
+
+    from shared.paths import ASSETS_DIR
+    from shared.tasknet.pnml import read_pnml
+    from webui.task_panel import net_picture
+
+    paths = sorted((ASSETS_DIR / "tasks").glob("*.pnml"))
+    assert len(paths) >= 3
+    for path in paths:
+        net = read_pnml(path)
+        html = net_picture(net, [])
+        natural = float(re.search(r'viewBox="0 0 ([\d.]+) ', html).group(1))
+        least = float(re.search(r'min-width:([\d.]+)px', html).group(1))
+        assert 'font-size="12"' in html and least / natural * 12 >= 11 - 0.05, (path.name, least, natural)
+        assert 'data-task-net style="width:100%;overflow:auto"' in html  # it scrolls past that
