@@ -65,6 +65,16 @@ LOADED_MACHINE_MARGIN_S = 3.0
 (SIGSTOP, then polling): the polls' interval and HTTP round trips, and on a loaded 2-core machine
 (fresh-clone runs measured load 20-35) seconds of a process waiting for a core. Named once, so
 no test widens a contract on its own."""
+SLOWDOWN = float(os.environ.get("TELEPROG_TEST_SLOWDOWN") or 1.0)
+"""Scales the suite's waits on a page for a loaded machine (``TELEPROG_TEST_SLOWDOWN=3`` on a busy
+box): one setting for every browser test, never a test's own bound."""
+PAGE_WAIT_S = 60.0 * SLOWDOWN
+"""How long a page may take to show a change (software WebGL on a loaded 2-core machine draws a
+frame in up to seconds); what a test waits on is the change itself, this only bounds the wait."""
+DRAG_EFFECT_S = 20.0 * SLOWDOWN
+"""How long a drag's effect (the arm moving) may take to reach the session before the drag counts
+as a miss (the press found no handle): only then is the next grab point tried, so a slow page
+never gets the same drag twice."""
 _SILENCE_REPORT = re.compile(r"no message from the console for (\d+(?:\.\d+)?) s")
 
 

@@ -13,7 +13,7 @@ import time
 from playwright.sync_api import Locator, Page
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-from support import wait_for  # noqa: F401 - the page tests import it from here too
+from support import DRAG_EFFECT_S, PAGE_WAIT_S, wait_for  # noqa: F401 - the page tests import wait_for from here too
 
 def option_name(label: str, option: str) -> str:
     """The text of a dropdown's option for ``option``: the Regime selector names a regime in the
@@ -23,8 +23,13 @@ def option_name(label: str, option: str) -> str:
     return regime_option(option) if label == "Regime" else option
 
 
+GIZMO_X_GRABS_PX = (40, 55, 30, 70, 25)
+"""Where, right of the canvas centre, the tool camera shows the gizmo's x arrow: the first almost
+always; the others only after a drag there moved nothing."""
 HAND_S = 0.15  # s between two quick clicks, more than viser's 50 ms GUI message throttle
-ENABLED_S = 60.0  # s for the page to turn a control on (it follows the link, 4 updates a second; a loaded machine draws slowly)
+ENABLED_S = PAGE_WAIT_S  # s for the page to turn a control on (it follows the link, 4 updates a second)
+TWO_FRAMES_JS = "() => new Promise(done => requestAnimationFrame(() => requestAnimationFrame(() => done(true))))"
+"""Resolves once the page has drawn twice: the pointer events before it are handled (raycast, hover)."""
 
 # Pointer moves dispatched on the 3D canvas at a fixed rate, a sine sweep along x: the page's own
 # pointer handling (three.js raycasting in drei's PivotControls), its throttled sender and
@@ -73,8 +78,8 @@ class ConsolePage:
         if camera == "tool":
             query = "&".join(q for q in (query, self.tool_camera_query()) if q)
         self.page.goto(self.console.url + ("/viser/?" + query if query else "/"))
-        self.page.wait_for_selector("canvas", timeout=30_000)
-        self.page.get_by_role("button", name="STOP").wait_for(timeout=30_000)
+        self.page.wait_for_selector("canvas", timeout=PAGE_WAIT_S * 1000)
+        self.page.get_by_role("button", name="STOP").wait_for(timeout=PAGE_WAIT_S * 1000)
         self.dismiss_notices(wait=15.0)
 
     def tool_camera_query(self) -> str:
@@ -167,13 +172,30 @@ class ConsolePage:
         assert box is not None
         return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
 
+    def settle(self) -> None:
+        """Wait until the page has drawn twice: the pointer events sent before are handled."""
+        self.page.evaluate(TWO_FRAMES_JS)
+
     def drag(self, x0: float, y0: float, x1: float, y1: float, steps: int = 12) -> None:
         self.page.mouse.move(x0, y0)
-        time.sleep(0.15)
+        self.settle()  # hovered: the handle under the pointer is known before the press
         self.page.mouse.down()
         self.page.mouse.move(x1, y1, steps=steps)
-        time.sleep(0.1)
+        self.settle()
         self.page.mouse.up()
+
+    def drag_until(self, grabs: list[tuple[float, float]], pull: tuple[float, float], moved, steps: int = 12):
+        """Drag from each grab point (canvas pixels) by ``pull`` until ``moved()`` gives something:
+        each drag is made once and its effect awaited (``DRAG_EFFECT_S``); only a drag that moved
+        nothing in that time (the press missed the handle) is followed by the next grab point, so
+        a slow page never gets the same drag twice. Returns what ``moved()`` gave."""
+        for x, y in grabs:
+            self.drag(x, y, x + pull[0], y + pull[1], steps=steps)
+            try:
+                return wait_for(moved, timeout=DRAG_EFFECT_S, interval=0.05, what="the drag's effect")
+            except AssertionError:
+                continue
+        raise AssertionError(f"no grab point moved the arm: {grabs}")
 
     def pointer_sweep(self, x0: float, y: float, amplitude: float, hz: float, seconds: float,
                       period: float = 2.0, every_move: bool = False) -> list[float]:
@@ -190,13 +212,12 @@ class ConsolePage:
         position (mm) after the first grab that moved it."""
         before = self.session()["arm"]["tool_xyz_mm"]
         cx, cy = self.canvas_center()
-        for grab in (40, 55, 30, 70, 25):
-            self.drag(cx + grab, cy, cx + grab + pixels, cy)
-            time.sleep(0.4)
+
+        def moved():
             after = self.session()["arm"]["tool_xyz_mm"]
-            if abs(after[0] - before[0]) > 1.0:
-                return after
-        raise AssertionError("no grab point on the gizmo's x arrow moved the tool")
+            return after if abs(after[0] - before[0]) > 1.0 else None
+
+        return self.drag_until([(cx + grab, cy) for grab in GIZMO_X_GRABS_PX], (pixels, 0.0), moved)
 
     def reset_program(self) -> None:
         """Start from an empty program, as an operator would: end a running preview, then load

@@ -71,14 +71,9 @@ def tool_mm(ui: ConsolePage) -> np.ndarray:
 
 
 def drag_until_moved(ui: ConsolePage, grabs: list[np.ndarray], pull: tuple[float, float], moved) -> None:
-    """Press at each grab point (world) in turn and pull by ``pull`` pixels until ``moved()``."""
-    for grab in grabs:
-        x, y = to_canvas(ui, grab)
-        ui.drag(x, y, x + pull[0], y + pull[1], steps=14)
-        time.sleep(0.5)
-        if moved():
-            return
-    raise AssertionError("no grab point on the handle moved the arm")
+    """Press at the grab points (world) in turn and pull by ``pull`` pixels, each drag once and
+    its effect awaited (``ConsolePage.drag_until``), until ``moved()``."""
+    ui.drag_until([to_canvas(ui, grab) for grab in grabs], pull, moved, steps=14)
 
 
 def drive_toggle(ui: ConsolePage):
@@ -171,7 +166,7 @@ def test_a_slider_dragged_with_pauses_writes_one_drive(ui: ConsolePage) -> None:
     q6 = ui.session()["arm"]["q_deg"][5]
     thumb = ui.row("J6").locator(".mantine-Slider-thumb").first
     thumb.scroll_into_view_if_needed()  # the joints sit below the fold of the Drive tab
-    time.sleep(0.3)
+    ui.settle()  # drawn where it scrolled to
     box = thumb.bounding_box()
     assert box is not None
     x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2

@@ -53,7 +53,7 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
     with EventTimes(console.url) as events:
         for grab in (40, 55, 30, 70, 25):  # where the x arrow is (as in ConsolePage.drag_gizmo_x)
             page.mouse.move(cx + grab, cy)
-            time.sleep(0.15)
+            ui.settle()  # hovered before the press
             before = len(sent)
             page.mouse.down()
             t0 = time.perf_counter()

@@ -142,7 +142,7 @@ def test_a_drag_in_the_free_zone_says_it_runs_on_the_robot(ui: ConsolePage) -> N
     cx, cy = ui.canvas_center()
     for grab in (40, 55, 30, 70, 25):  # the gizmo's x arrow, as ConsolePage.drag_gizmo_x grabs it
         ui.page.mouse.move(cx + grab, cy)
-        time.sleep(0.15)
+        ui.settle()  # hovered before the press
         ui.page.mouse.down()
         ui.page.mouse.move(cx + grab + 70, cy, steps=14)
         try:
