@@ -32,6 +32,21 @@ def direction_label(constraint: str) -> str:
     return f"{constraint} axis" if len(constraint) == 1 else f"{constraint} plane"
 
 
+WRITTEN_SHOWN = 3  # the program's last statements the Drive tab shows
+
+
+def written_markdown(view: ProgramView) -> str:
+    """What the Drive tab says of the statements being written: the program's last ones, newest
+    last, so the operator sees each drag become a statement without leaving the tab."""
+    if not view.auto_generate:
+        return "Writing: off (drags move the virtual arm only)"
+    last = view.entries[:view.empty_index][-WRITTEN_SHOWN:]
+    if not last:
+        return "Writing: nothing yet; a drag, let go, becomes a statement"
+    first = view.empty_index - len(last) + 1
+    return "Written last:  \n" + "  \n".join(f"{first + i}: `{e.text}`" for i, e in enumerate(last))
+
+
 class DrivePanel:
     """GUI controls for driving the virtual arm."""
 
@@ -51,6 +66,7 @@ class DrivePanel:
                                          hint="write the motion you drive as program statements, in the chosen frame")
         self._setting = False
         self.generate.on_update(self._on_generate)
+        self.written = gui.add_markdown("")  # the statements the drags wrote last (``written_markdown``)
         self.status = gui.add_markdown("")
         self.collision = gui.add_markdown("")
         with gui.add_folder("Joints (deg)"):
@@ -123,6 +139,9 @@ class DrivePanel:
         self.status.content = text
 
     def show_program(self, view: ProgramView) -> None:
+        written = written_markdown(view)
+        if self.written.content != written:
+            self.written.content = written
         if self.generate.value != view.auto_generate:
             self._setting = True
             try:
