@@ -35,9 +35,15 @@ started with, so backing away, sliding along or lifting off runs, and pressing f
 once; clear of the contact the normal rules apply.
 
 Tasks (``shared.language.tasks``) run as generators of small guarded motions, planned by the
-same interpreter: ``insert_peg`` approaches the hole, descends until contact, searches around
-the contact point with the force sensor when the peg lands on the plate, then seats the peg;
-``extract_peg`` pulls the peg out along the hole's axis and fails if it sticks.
+same interpreter, aimed at the poses each task's declared effect names
+(``shared.motion.task_effects.arm_end``, the function the console's planner predicts with, fed
+here with the grip the robot senses): ``insert_peg`` approaches the hole, descends until contact,
+searches around the contact point with the force sensor when the peg lands on the plate, then
+seats the peg (its foot on the floor, the seat the effect names) and, on physics, brings the arm
+over the tool again (the compliant wrist straight), so the arm ends at the seat and not where the
+search left it; ``extract_peg`` pulls the peg out along the hole's axis by the effect's lift and
+fails if it sticks; ``release`` opens and backs off by the effect's retreat (none for the §4.6
+gripper).
 """
 
 from __future__ import annotations
@@ -65,8 +71,9 @@ from shared.language.statements import (
     UntilContact,
     UntilForce,
 )
-from shared.language.tasks import EXTRACT_LIFT_M, find_task, resolve_name
+from shared.language.tasks import find_task, resolve_name
 from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopReason
+from shared.motion.task_effects import Grip, TaskObjects, arm_end
 from shared.spatial import matrix_to_rpy
 from shared.terrain.cell import TERRAIN_OBJECT, has_terrain, load_cell_terrain
 from shared.wire.messages import MAX_TEXT, ControlMode, RobotSnapshot, RobotState, StatementState
@@ -139,6 +146,7 @@ class Executor:
 
             zones = robot_zones(self.robot)
         self.interpreter = Interpreter.for_cell(cell, self.q, zones=zones)
+        self._model_objects = TaskObjects.of_cell(cell)  # the seat depths the task effects name
         # The collision core watches the arm against the real cell on every servo step. Pegs are
         # left to the contact model above (their fit in a hole is finer than any mesh test), and
         # so is the gripper holding or closing on one.
@@ -592,8 +600,11 @@ class Executor:
                     return "gripper opened, holding nothing"  # already open: nothing to wait for
                 self.world.open_gripper()
                 yield from self._wait(self.settings.gripper_time)
-                return self.world.release_result()
-            return self.world.release(self.q)
+                said = self.world.release_result()
+            else:
+                said = self.world.release(self.q)
+            yield from self._retreat(spec)
+            return said
         peg = resolve_name(call.args[0], objects) if call.args else None
         hole = resolve_name(call.args[1], features) if len(call.args) > 1 else None
         if peg is None or hole is None:
@@ -623,16 +634,30 @@ class Executor:
     def _world_tcp(self) -> np.ndarray:
         return self.world.world_T_tcp(self.q)
 
-    def _foot_offset(self, peg: str) -> np.ndarray:
-        """Vector from the tool centre point to the peg's foot, in the world frame."""
+    def _grip(self, peg: str) -> Grip:
+        """The held peg as the robot senses it in the fingers (the task effects' grip)."""
         state = self.world.pegs[peg]
-        world_T_peg = self._world_tcp() @ state.tool_T_peg
-        foot = world_T_peg[:3, 3] - world_T_peg[:3, 2] * state.half_size[2]
-        return foot - self._world_tcp()[:3, 3]
+        return Grip(peg, state.tool_T_peg, np.array([0.0, 0.0, -float(state.half_size[2])]))
+
+    def _effect_end(self, name: str, hole: str | None = None, peg: str | None = None) -> np.ndarray:
+        """Where task ``name``'s declared effect puts the tool from here (world point, m): the
+        pose the console's planner predicts, from the grip the robot senses."""
+        world_T_hole = None if hole is None else self.cell.features[hole].world_T_feature
+        grip = None if peg is None else self._grip(peg)
+        depth = None if peg is None else self._model_objects.depths.get(peg)
+        end = arm_end(find_task(name).effect, self._world_tcp(), world_T_hole, grip, depth)
+        if end is None:
+            raise StepFailure(f"task {name}: nothing to aim at (no hole or no grip)")
+        return end[:3, 3]
+
+    def _retreat(self, spec) -> Generator[None, None, None]:
+        """Back the tool off along its own axis by the task's declared retreat (none: stay)."""
+        if spec.effect.arm != "retreat" or spec.effect.distance_m <= 0.0:
+            return
+        yield from self._play(self._tool_line(self._effect_end(spec.name)), expect_contact=True)
 
     def _extract(self, peg: str, hole: str) -> _Runner:
-        axis = self.cell.features[hole].world_T_feature[:3, 2]
-        target = self._world_tcp()[:3, 3] + EXTRACT_LIFT_M * axis
+        target = self._effect_end("extract_peg", hole)
         segment = self._tool_line(target, until=UntilForce(newtons=self.settings.extract_limit))
         reason = yield from self._play(segment, expect_contact=True)
         if reason is not StopReason.COMPLETED:
@@ -643,14 +668,13 @@ class Executor:
         if self.physical:
             return (yield from self._insert_physical(peg, hole))
         s = self.settings
-        mouth = self.cell.features[hole].world_T_feature[:3, 3]  # where the model says the hole is
-        foot = self._foot_offset(peg)
-        depth = self.world.settings.hole_depth
+        mouth, axis, depth, seat = self._seat(peg, hole)  # where the model says the hole is
+        foot = (mouth - depth * axis) - seat  # the peg's foot from the tool point, world
         # 1. approach: the peg's foot 5 mm above the modelled mouth
-        yield from self._play(self._tool_line(mouth + np.array([0.0, 0.0, 0.005]) - foot))
+        yield from self._play(self._tool_line(seat + (depth + 0.005) * axis))
         # 2. guarded descent to first contact (or straight in if the hole is where the model says)
         reason = yield from self._play(
-            self._tool_line(mouth - np.array([0.0, 0.0, depth + 0.002]) - foot, UntilForce(newtons=s.touch_force)),
+            self._tool_line(seat - 0.002 * axis, UntilForce(newtons=s.touch_force)),
             expect_contact=True,
         )
         foot_z = lambda: self._world_tcp()[2, 3] + foot[2]  # noqa: E731
@@ -690,12 +714,11 @@ class Executor:
            over and pressing again, until the foot drops ``2 mm`` below where it touched;
         5. seat the peg (``_seat_physical``): down to the floor, or jammed."""
         s = self.settings
-        mouth = self.cell.features[hole].world_T_feature[:3, 3]
-        foot = self._foot_offset(peg)
-        depth = self.world.settings.hole_depth
+        mouth, axis, depth, seat = self._seat(peg, hole)
+        foot = (mouth - depth * axis) - seat  # the peg's foot from the tool point, world
         slow = s.guarded_speed
-        yield from self._play(self._tool_line(mouth + np.array([0.0, 0.0, 0.005]) - foot))
-        yield from self._play(self._tool_line(mouth - np.array([0.0, 0.0, depth + 0.002]) - foot,
+        yield from self._play(self._tool_line(seat + (depth + 0.005) * axis))
+        yield from self._play(self._tool_line(seat - 0.002 * axis,
                                               UntilForce(newtons=s.touch_force), speed=slow), expect_contact=True)
         z_touch = self._world_tcp()[2, 3]
         inside = lambda: self._world_tcp()[2, 3] + foot[2] < mouth[2] - 0.002  # noqa: E731
@@ -710,7 +733,25 @@ class Executor:
         yield from self._play(self._tool_line(np.array([here[0], here[1], mouth[2] - depth - 0.002 - foot[2]]),
                                               UntilForce(newtons=s.touch_force), speed=slow), expect_contact=True)
         yield from self._seat_physical(peg, hole, mouth, depth, foot)
+        yield from self._centre_over_tool()
         return f"{peg} seated in {hole}"
+
+    def _seat(self, peg: str, hole: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """The modelled hole's mouth and axis, the seat depth and the tool point at the seat
+        ``insert_peg``'s declared effect names (world, m), from the grip the robot senses."""
+        world_T_hole = self.cell.features[hole].world_T_feature
+        depth = float(self._model_objects.depths.get(peg, self.world.settings.hole_depth))
+        return world_T_hole[:3, 3].copy(), world_T_hole[:3, 2].copy(), depth, self._effect_end("insert_peg", hole, peg)
+
+    def _centre_over_tool(self) -> Generator[None, None, None]:
+        """Physics: the seated peg holds the tool over the real hole while the arm stands where
+        the search left it, the compliant wrist bent between them. Bring the arm over the tool
+        (the wrist straight), so the arm ends at the seat and the tool does not spring aside when
+        the fingers open."""
+        here = self.world.world_T_tcp()[:3, 3]
+        if np.linalg.norm(here - self._world_tcp()[:3, 3]) < 1e-4:
+            return
+        yield from self._play(self._tool_line(here, speed=self.settings.guarded_speed), expect_contact=True)
 
     def _spiral_search(self, z_touch: float) -> Generator[None, None, bool]:
         """Physics: slide the peg over the surface on an Archimedean spiral round the first

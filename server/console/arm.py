@@ -44,9 +44,10 @@ from shared.cells.object_world import ObjectWorld
 from shared.collision.cell_check import CellCollision, CellReport
 from shared.errors import InputError
 from shared.program.generator import JogMode
-from shared.robots.handles import ToolHandle, handle_turn, joint_handle, tool_goal, tool_handle
+from shared.motion.task_effects import TaskObjects
+from shared.robots.handles import ToolHandle, fine_gain, handle_turn, joint_handle, scaled_step, tool_goal, tool_handle
 from shared.robots.jog import JogResult, jog_joint, jog_tool, jog_tool_to, world_T_tcp
-from shared.spatial import matrix_to_rpy
+from shared.spatial import invert, matrix_to_rpy
 
 if TYPE_CHECKING:
     from server.console.control import ControlLock
@@ -73,6 +74,8 @@ class VirtualArm:
         self._report: CellReport | None = None
         self._view: CollisionView | None = None
         self._stroke_open = False  # between the first move of a stroke and its release
+        self._drag_handle: np.ndarray | None = None  # the tool handle's last pose in this drag (world)
+        self._drag_goal: np.ndarray | None = None  # where the handle asks the tool's grip to be, fine near objects
         with ctx.lock:
             self.refresh()
 
@@ -153,8 +156,26 @@ class VirtualArm:
     def drag_tool_handle(self, world_T_handle: np.ndarray, handle_T_tcp: np.ndarray, *, frame: str, constraint: str,
                          motion: str, client: Caller | str | None = None) -> VirtualState:
         """The tool's handle was dragged to ``world_T_handle``: follow it with the grip it was
-        placed with, under the constraint."""
-        return self.jog_tool_to(tool_goal(world_T_handle, handle_T_tcp), frame=frame, constraint=constraint, motion=motion, client=client)
+        placed with, under the constraint, finer near objects: each step of the handle moves the
+        goal by ``fine_gain`` of it at the tool's clearance then (``shared.robots.handles``), so
+        the tool lags the handle near contact; the stroke's release puts the handle back on it."""
+        with self._ctx.lock:
+            was = self._drag_handle
+            if was is None:  # the stroke's first step starts where the handle stood on the tool
+                was = self._state.world_T_tcp @ invert(np.asarray(handle_T_tcp, dtype=float))
+                self._drag_goal = was
+            clearance = self._view.min_distance if self._view is not None else None
+            self._drag_goal = scaled_step(self._drag_goal, was, world_T_handle, fine_gain(clearance))
+            self._drag_handle = np.asarray(world_T_handle, dtype=float).copy()
+            goal = tool_goal(self._drag_goal, handle_T_tcp)
+        return self.jog_tool_to(goal, frame=frame, constraint=constraint, motion=motion, client=client)
+
+    def task_objects(self) -> TaskObjects:
+        """The movable objects and the grip as the virtual cell has them now, for the planner:
+        a task's end (an insertion's seat) follows from what the gripper holds and how."""
+        with self._ctx.lock:
+            o = self.objects
+            return TaskObjects.of_world(self._ctx.cell, o.placed, o.held, o.tcp_T_held)
 
     def joint_handle(self, joint: int) -> np.ndarray:
         """Joint ``joint``'s drag handle (world): at the joint, z along its axis."""
@@ -179,6 +200,7 @@ class VirtualArm:
         with self._ctx.lock:
             self._control.check(client)
             self._stroke_open = False
+            self._drag_handle = self._drag_goal = None  # the next drag starts from the tool
         return self._desk.end_stroke(client=client)
 
     def _apply(self, step: Step, mode: JogMode, client: Caller | str | None, frame: str | None = None) -> VirtualState:

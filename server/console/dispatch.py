@@ -214,7 +214,8 @@ class Dispatch:
                 self._regime_rules(statements, start, stop)
                 self._mode_line(statements, start, stop)  # raises ConsoleLineAdded after adding one
                 start_state = self._desk.start
-                plan = None if start_state.unknown else plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start_state.q)
+                plan = None if start_state.unknown else plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start_state.q,
+                                                                        self._arm.task_objects())
                 result = editor.submit(start, stop)
                 if isinstance(result, Refusal):
                     raise RefusedByRule(result)
@@ -404,7 +405,7 @@ class Dispatch:
             return None
         ctx = self._ctx
         if plan is None:
-            plan = plan_or_refuse(statements, ctx.robot, ctx.cell, start.q)
+            plan = plan_or_refuse(statements, ctx.robot, ctx.cell, start.q, self._arm.task_objects())
         start.q, start.source = plan.q_final.copy(), "predicted"
         if plan.after_task is not None or plan.refusal is not None:
             start.unknown = True

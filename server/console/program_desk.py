@@ -59,6 +59,7 @@ from shared.language.formatter import format_program
 from shared.language.parser import parse_statement
 from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
 from shared.motion.prefix_planner import PrefixPlanner
+from shared.motion.task_effects import TaskObjects
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
 from shared.program.generator import Generated, JogMode, ProgramGenerator, RobotSample
 
@@ -90,6 +91,15 @@ def _copy_editor(editor: Editor) -> Editor:
     return trial
 
 
+def _grip_key(objects: TaskObjects | None) -> bytes:
+    """What of ``objects`` a plan's tasks depend on, as bytes for the planner cache's key."""
+    if objects is None:
+        return b""
+    grip = objects.grip
+    placed = b"".join(name.encode() + np.asarray(pose).tobytes() for name, pose in sorted(objects.poses.items()))
+    return placed + (b"" if grip is None else grip.name.encode() + np.asarray(grip.tcp_T_object).tobytes())
+
+
 class ProgramDesk(ConsoleLines):
     """Editor, generator, files and the program's start."""
 
@@ -98,6 +108,8 @@ class ProgramDesk(ConsoleLines):
         self._control, self._modes = control, modes
         self.preview: Previewer | None = None  # set by the session
         self.dispatch: Dispatch | None = None  # set by the session
+        self.objects_at_start: Callable[[], TaskObjects] | None = None
+        """The objects and the grip where the program starts (set by the session: the virtual cell's)."""
         self._editor = Editor(strict=ctx.settings.strict_editing)
         self._auto = bool(ctx.settings.auto_generate)
         cell = ctx.cell
@@ -162,9 +174,10 @@ class ProgramDesk(ConsoleLines):
     def prefix_planner(self, q_start: np.ndarray) -> PrefixPlanner:
         """The planner of durations from ``q_start``: it re-plans a changed program only from its
         first changed statement (a generated statement added while driving: one statement)."""
-        key = q_start.tobytes()
+        objects = self.objects_at_start() if self.objects_at_start is not None else None
+        key = q_start.tobytes() + _grip_key(objects)
         if self._planner is None or self._planner[0] != key:
-            self._planner = (key, PrefixPlanner(self._ctx.robot, self._ctx.cell, q_start))
+            self._planner = (key, PrefixPlanner(self._ctx.robot, self._ctx.cell, q_start, objects))
         return self._planner[1]
 
     def confirmed_range(self) -> tuple[int, int] | None:

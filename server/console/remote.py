@@ -13,6 +13,12 @@ the virtual world the operator edits.
 * Divergence: once the robot is at rest, the reported arm against where the program expects it
   and the reported objects against the virtual world's; beyond the thresholds, the operator is
   told and offered a re-sync, which takes the robot's state as the program's new start.
+* The robot's report is the truth where contact decides a task's end: when the statement that
+  last moved the arm is a task whose declared effect has a tolerance (``insert_peg``'s seat,
+  ``extract_peg``'s lift; ``shared.motion.task_effects.contact_end``), it and everything after it
+  finished done, and the robot stands within that tolerance of the predicted end, the console
+  takes the robot's arm and objects as the program's start (as a re-sync would) and tells no
+  divergence: a successful task ends where the robot says, not in a warning.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 
 from server.console.context import ConsoleContext
 from server.console.control import as_caller
+from server.console.enums import SentStatus
 from server.console.errors import ConflictError
 from server.console.events import (
     ActionTaken,
@@ -43,6 +50,7 @@ from shared.cells.object_world import ObjectWorld
 from shared.errors import TeleprogError
 from shared.language.statements import Statement, TaskCall
 from shared.motion.expectation import arm_offset, tool_path
+from shared.motion.task_effects import TaskObjects, contact_end, within_tolerance
 from shared.motion.plan_check import plan_or_refuse
 from shared.robots.jog import world_T_tcp
 from shared.spatial import pose_to_transform
@@ -193,7 +201,9 @@ class RemoteMirror:
                 frame = self.telemetry
                 start = np.array(frame.q, dtype=float) if frame is not None else self._desk.start.q
                 try:
-                    plan = plan_or_refuse([s.statement for s in pending], ctx.robot, ctx.cell, start)
+                    held = self.objects  # the robot's grip: an insertion's seat follows from it
+                    objects = TaskObjects.of_world(ctx.cell, held.placed, held.held, held.tcp_T_held)
+                    plan = plan_or_refuse([s.statement for s in pending], ctx.robot, ctx.cell, start, objects)
                 except TeleprogError:
                     plan = None
                 if plan is None or plan.duration <= 0:
@@ -217,10 +227,16 @@ class RemoteMirror:
                 if self._divergence.checked:
                     self._divergence = self._divergence.model_copy(update={"checked": False})
                 return
-            offset = arm_offset(self._ctx.robot, self._ctx.frames, np.array(frame.q, dtype=float), self._desk.start.q)
-            obj, oerr = self.objects.divergence(self._arm.objects)
+            q_robot = np.array(frame.q, dtype=float)
+            offset = arm_offset(self._ctx.robot, self._ctx.frames, q_robot, self._desk.start.q)
             unknown = self._desk.start.unknown
             arm_off = offset.beyond(s.divergence_joint, s.divergence_tool)
+            if (unknown or arm_off) and self._take_contact_end(q_robot):
+                unknown, arm_off, adopted = False, False, True
+                offset = arm_offset(self._ctx.robot, self._ctx.frames, q_robot, self._desk.start.q)
+            else:
+                adopted = False
+            obj, oerr = self.objects.divergence(self._arm.objects)
             objects_off = oerr > s.divergence_tool
             diverged = unknown or arm_off or objects_off
             msg = ""
@@ -236,8 +252,41 @@ class RemoteMirror:
                                   threshold_joint=s.divergence_joint, threshold_tool=s.divergence_tool, checked=True, message=msg)
             changed = view != self._divergence
             self._divergence = view
+        if adopted:
+            self._publish_adopted()
         if changed:
             self._ctx.bus.emit([DivergenceChanged(divergence=view)])
+
+    def _take_contact_end(self, q_robot: np.ndarray) -> bool:
+        """The robot at rest at ``q_robot`` after a task whose end contact decides (module
+        docstring): within the task's declared tolerance of the predicted end, its arm and
+        objects become the program's start (under the lock). False, changing nothing, otherwise."""
+        finished = [(s.statement, s.status is SentStatus.DONE) for s in self._dispatch.sent]
+        effect = contact_end(finished)
+        start = self._desk.start
+        # where the task leaves the tool by the model: the program's predicted start, or, while
+        # the virtual gripper still holds what an insertion seated, the seat the object world's
+        # contract put the tool at (a plan that did not know the grip stopped before the task)
+        expected = self._arm.objects.world_T_tcp_inserted
+        if expected is None:
+            expected = self._world_T_tcp(start.q)
+        if effect is None or not within_tolerance(effect, self._world_T_tcp(q_robot), expected):
+            return False
+        q = self._ctx.robot.as_q(q_robot)
+        self._arm.objects.take(self.objects, self._arm.state.world_T_tcp)
+        start.q, start.source, start.unknown = q.copy(), "telemetry", False
+        self._desk.reset_generator()
+        self._desk.withdraw_confirmation()
+        return True
+
+    def _publish_adopted(self) -> None:
+        """After ``_take_contact_end``: the arm where the robot stands (when nothing of the
+        operator's stands between), its objects redrawn, the program's new start."""
+        if not self._arm.follow_start():
+            with self._ctx.lock:
+                events = self._arm.refresh()
+            self._ctx.bus.emit(events)
+        self._ctx.bus.emit([ProgramChanged(program=self._desk.view())])
 
     def resync(self, *, client: Caller | str | None = None, snapshot=None) -> SessionSnapshot:
         """Put the virtual arm (and the objects) where the robot's state says, and start the

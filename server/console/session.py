@@ -98,6 +98,7 @@ class Session:
         self.preview = Previewer(ctx, collision, self.control, self.modes, self.program,
                                  lambda: (self.arm.object_poses(), self.arm.objects.held))
         self.arm = VirtualArm(ctx, collision, self.control, self.modes, self.program, self.preview, self.terrain)
+        self.program.objects_at_start = self.arm.task_objects
         self.dispatch = Dispatch(ctx, self.control, self.modes, self.program, self.arm)
         self.remote = RemoteMirror(ctx, self.control, self.program, self.arm, self.dispatch)
         self.link = LinkStatus(ctx, self.dispatch, self.remote)

@@ -5,7 +5,11 @@ net allows.
 
 * Virtual side: every change of the virtual arm (``ArmChanged``: tool pose, held object, object
   poses) is a state of the virtual cell; its coordinator recognises the actions and moves the
-  virtual marking. The recognised actions generate the task net (§3.5.5) shown on the page.
+  virtual marking. The recognised actions generate the task net (§3.5.5) shown on the page. A
+  cell that jumped (a submit or a report put the arm and the objects where the sent statements
+  end) is followed by the shortest run of enabled actions that explains it
+  (``TaskCoordinator.follow``); after a re-sync the marking is what the cell shows (``take``).
+  So the virtual marking is always the marking of what the virtual cell shows.
 * Robot side: every remote arm view (``RemoteArmChanged``: the robot's tool, gripper, held and
   reported objects) moves the robot's marking the same way.
 * Preview: when a range is previewed, the console plays the program up to the range's end once
@@ -17,6 +21,9 @@ net allows.
   made an action expected of it, that is a deviation with the transition expected. A robot state
   the marking contradicts with no enabled transition explaining it (the peg reported free while
   held) is a deviation too.
+* One truth: with the robot at rest, nothing pending and the virtual arm at the program's start
+  (the program empty), the two markings must be the same; a disagreement is a deviation
+  (``markings``) and a warning notice, never a silent difference in the panel.
 
 No geometry here: ``shared.tasknet`` does the contacts and the net. Listeners run after the
 session's lock is released; this part has its own lock.
@@ -33,7 +40,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from server.console.context import ConsoleContext
 from server.console.enums import FINAL_SENT
-from server.console.events import ArmChanged, PreviewChanged, RangeSubmitted, RemoteArmChanged, SentChanged, SessionEvent, TaskChanged
+from server.console.events import (
+    ActionTaken,
+    ArmChanged,
+    Notice,
+    PreviewChanged,
+    RangeSubmitted,
+    RemoteArmChanged,
+    SentChanged,
+    SessionEvent,
+    TaskChanged,
+)
 from server.console.views import ActionView, DeviationView, PreviewView, RemoteArmView, RuleView, TaskView
 from server.console.work import Work
 from server.delivery import Delivery
@@ -51,6 +68,8 @@ log = logging.getLogger(__name__)
 GRIPPER_CLOSED_M = 0.005
 """A reported gripper opening (m) below which the robot's gripper counts as closed."""
 MAX_DEVIATIONS = 50
+AT_REST = ("idle", "stopped", "fault")
+"""Robot states in which nothing moves: the markings are compared then."""
 
 
 @dataclass
@@ -129,6 +148,10 @@ class TaskMonitor:
     error: str | None = None
     _last: CellState | None = None  # the robot's cell as its newest remote view shows it
     _last_remote: RemoteArmView | None = None
+    _pending = 0  # statements sent and not final, by the newest sent list
+    _resynced = False  # a re-sync came: the next virtual cell is taken as it is
+    _virtual_q: np.ndarray | None = None  # the virtual arm's joints, by its newest view
+    _disagreed: tuple | None = None  # (virtual, robot) markings the last robot view at rest found apart
 
     @property
     def available(self) -> bool:
@@ -155,18 +178,26 @@ class TaskMonitor:
                     return
             self._take_preview(event, source, seq)
             return
+        # the program's start, read outside this part's lock as a preview's source is: the
+        # markings are compared on the robot's views, which carry what its reports left
+        start = self._program_start(event.remote) if isinstance(event, RemoteArmChanged) else None
+        notices: list[Notice] = []
         with self._lock:
             if isinstance(event, ArmChanged):
                 changed = self._observe_virtual(event)
             elif isinstance(event, RemoteArmChanged):
                 changed = self._observe_robot(event)
+                changed |= self._compare_markings(start, notices)
             elif isinstance(event, SentChanged):
+                self._pending = event.sent.pending
                 changed = self._statuses(event)
             else:
+                if isinstance(event, ActionTaken) and event.action == "resync":
+                    self._resynced = True  # the next virtual cell is taken as it is
                 changed = False
             view = self._changed() if changed else None
         if view is not None:
-            self._ctx.bus.emit([TaskChanged(task=view)])
+            self._ctx.bus.emit([TaskChanged(task=view), *notices])
 
     def close(self) -> None:
         self._plays.close()
@@ -232,7 +263,47 @@ class TaskMonitor:
     def _observe_virtual(self, event: ArmChanged) -> bool:
         arm = event.arm
         state = self._state(arm.world_T_tcp, arm.held is not None, arm.object_poses)
-        return bool(self._virtual.observe(state, self._ctx.clock()))
+        self._virtual_q = np.asarray(arm.q, dtype=float)
+        now = self._ctx.clock()
+        if self._resynced:  # the cell was taken from the robot: so is its marking
+            self._resynced = False
+            return self._virtual.take(state)
+        changed = bool(self._virtual.observe(state, now))
+        return bool(self._virtual.follow(state, now)) or changed  # a jump: the actions that explain it
+
+    def _program_start(self, r: RemoteArmView) -> tuple[bool, np.ndarray] | None:
+        """Whether the program is empty and where it starts, while the robot is at rest with
+        nothing pending (None otherwise, or with no source to read it from)."""
+        if self._preview_source is None or r.state not in AT_REST or self._pending:
+            return None
+        statements, start_q, _poses, _held = self._preview_source(1)
+        return not statements, np.asarray(start_q, dtype=float)
+
+    def _compare_markings(self, start: tuple[bool, np.ndarray] | None, notices: list[Notice]) -> bool:
+        """After the robot's newest view: the robot at rest, nothing pending, the virtual arm at
+        the program's start with the program empty: the two markings must agree; a
+        disagreement is a deviation and a notice."""
+        r = self._last_remote
+        at_start = self._preview_source is None or (
+            start is not None and start[0] and self._virtual_q is not None and self._virtual_q.shape == start[1].shape
+            and np.allclose(self._virtual_q, start[1], rtol=0.0, atol=1e-9))
+        if r is None or r.state not in AT_REST or self._pending or self._resynced or not at_start:
+            self._disagreed = None
+            return False
+        v, rb = self._virtual.marking, self._robot.coordinator.marking
+        if v == rb or self._disagreed != (v, rb):  # told when two views in a row show it: the
+            self._disagreed = None if v == rb else (v, rb)  # console settles a report first
+            return False
+        only_v, only_r = self._virtual.ordered(v - rb), self._virtual.ordered(rb - v)
+        path = self._robot.coordinator.path_to(v)  # what the robot's net lacks to be where the virtual one is
+        expected = path[0].text if path else None
+        message = (f"the virtual cell's marking has {', '.join(only_v) or 'nothing more'} where the robot's has "
+                   f"{', '.join(only_r) or 'nothing more'}, with the robot at rest"
+                   + (f" (expected {expected})" if expected else "") + "; re-sync to take the robot's cell")
+        if not self._deviate("markings", expected, r.statement or None, "", message, {a: a in rb for a in sorted(v ^ rb)}):
+            return False
+        notices.append(Notice(level="warning", message=f"task net: {message}"))
+        return True
 
     def _observe_robot(self, event: RemoteArmChanged) -> bool:
         r = event.remote

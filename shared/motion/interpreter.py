@@ -9,10 +9,16 @@ the segment and, when a motion stopped early (UNTIL) or a task ran, tells the in
 the arm really is with ``resume_at``. Everything is deterministic: same inputs, same plan.
 
 Tasks (``shared.language.tasks``) are run by the executor, not planned here: a TASK becomes a
-zero-duration ``SegmentKind.TASK`` step. Its ``q_end`` is where the task's contract leaves the
-arm: where it was for a ``still`` task (grasp, release), ``EXTRACT_LIFT_M`` up the hole's axis for
-a ``retract`` task (extract_peg); after an ``unknown`` task (insert_peg, or a task this registry
-does not know) no action and no arm-moving task can be planned until ``resume_at``.
+zero-duration ``SegmentKind.TASK`` step. Its ``q_end`` is where the task's declared effect leaves
+the arm (``shared.motion.task_effects.arm_end``, the function the robot's task code aims by):
+where it was for grasp, ``EXTRACT_LIFT_M`` up the hole's axis for extract_peg, the held peg seated
+in the hole for insert_peg, ``RELEASE_RETREAT_M`` back along the tool for release. The state
+carries the objects as the plan has them (``TaskObjects``: a grasp holds, a release lets go), so
+an insertion's seat follows from the grip the program's grasp made. After an ``unknown`` task
+(insert_peg, whose exact end contact decides, or a task this registry does not know) no action and
+no arm-moving task can be planned until ``resume_at``; insert_peg's ``q_end`` is still its
+predicted seat when the grip is known (the robot reports the truth, within the effect's
+tolerance), and the pose before it when not.
 
 Speeds: ``SPEED`` sets the speed of the following actions; ``WITH SPEED`` replaces it for one
 action. A fraction scales every velocity limit (joints, tool line, tool rotation); an absolute
@@ -54,13 +60,14 @@ from shared.language.statements import (
     UntilTime,
 )
 from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
-from shared.language.tasks import EXTRACT_LIFT_M, TASKS, ArmEnd, resolve_name
+from shared.language.tasks import TASKS, ArmEnd, resolve_name
 from shared.motion.frames import CellFrames
 from shared.motion.limits import MotionLimits, default_limits
 from shared.motion.paths import JointPath, NodePath, ToolLine, build_tool_path, hermite, solve_nearest
 from shared.motion.profile import Trapezoid, evaluate_trapezoids
 from shared.motion.refusal import PlanRefused, RefusalReason
 from shared.motion.segment import Samples, Segment, SegmentKind
+from shared.motion.task_effects import TaskObjects, arm_end
 from shared.robots.ik import positions_tool_only
 from shared.robots.model import LIMIT_TOLERANCE, Robot
 from shared.spatial import rpy_to_matrix
@@ -77,7 +84,8 @@ STILL = 1e-12
 class InterpreterState:
     """What the statements so far have set. ``world_T_tcp`` is the tool centre point at ``q``;
     ``index`` counts the statements planned; ``after_task`` names the last task whose end pose
-    only the executor can know (see ``Interpreter.resume_at``), None when the pose is known."""
+    only the executor can know (see ``Interpreter.resume_at``), None when the pose is known;
+    ``objects`` are the movable objects as the tasks so far left them (what the gripper holds)."""
 
     q: np.ndarray
     world_T_tcp: np.ndarray
@@ -85,6 +93,7 @@ class InterpreterState:
     mode: Mode = Mode.POSITION
     index: int = 0
     unknown: UnknownPose | None = None
+    objects: TaskObjects = field(default_factory=TaskObjects)
 
     @property
     def after_task(self) -> str | None:
@@ -113,7 +122,10 @@ class Interpreter:
         limits: MotionLimits | None = None,
         features: dict[str, Feature] | None = None,
         zones: InterferenceZones | None = None,
+        objects: TaskObjects | None = None,
     ) -> None:
+        """``objects``: the movable objects at the start and what the gripper holds
+        (``TaskObjects.of_cell``, ``TaskObjects.of_world``); none known when omitted."""
         self.robot = robot
         self.zones = zones  # mechanical interference zones (seed 001); None: not checked
         self.frames = frames or CellFrames.identity()
@@ -122,7 +134,8 @@ class Interpreter:
         self.limits.check_robot(robot)
         q = robot.as_q(q_start)
         robot.check_limits(q)
-        self._state = InterpreterState(q=q.copy(), world_T_tcp=self.frames.world_T_tcp(robot, q))
+        self._state = InterpreterState(q=q.copy(), world_T_tcp=self.frames.world_T_tcp(robot, q),
+                                       objects=objects if objects is not None else TaskObjects())
 
     @classmethod
     def for_cell(
@@ -131,9 +144,12 @@ class Interpreter:
         q_start: Sequence[float] | np.ndarray | None = None,
         limits: MotionLimits | None = None,
         zones: InterferenceZones | None = None,
+        objects: TaskObjects | None = None,
     ) -> "Interpreter":
+        """``objects`` default to the cell's as its file places them, nothing held."""
         q = cell.q_home if q_start is None else q_start
-        return cls(cell.robot, q, CellFrames.from_cell(cell), limits, cell.features, zones)
+        return cls(cell.robot, q, CellFrames.from_cell(cell), limits, cell.features, zones,
+                   TaskObjects.of_cell(cell) if objects is None else objects)
 
     @property
     def state(self) -> InterpreterState:
@@ -164,8 +180,12 @@ class Interpreter:
         except PlanRefused as exc:
             raise exc.at_index(index) from None
         new_q = segment.q_end
+        objects = state.objects
+        if isinstance(statement, TaskCall):
+            objects = self._objects_after(statement, state)
         self._state = replace(
             state,
+            objects=objects,
             q=new_q.copy(),
             world_T_tcp=self.frames.world_T_tcp(self.robot, new_q) if segment.kind is not SegmentKind.PARAMETER else state.world_T_tcp,
             speed=statement.speed if isinstance(statement, SetSpeed) else state.speed,
@@ -196,19 +216,40 @@ class Interpreter:
         raise InputError(f"statement kind {getattr(st, 'kind', type(st).__name__)!r} cannot be planned")
 
     def _plan_task(self, st: TaskCall, state: InterpreterState, index: int) -> Segment:
+        """The task's declared effect (``shared.language.tasks.TaskEffect``) as its end pose,
+        by the function the robot aims with (``shared.motion.task_effects.arm_end``)."""
         spec = TASKS.get(st.name) or TASKS.get(st.name.lower())
-        arm_end: ArmEnd = spec.arm_end if spec is not None else "unknown"
         q0 = state.q
-        q_end = q0.copy()
-        if arm_end == "retract":
-            hole = resolve_name(st.args[1], tuple(self.features)) if len(st.args) > 1 else None
-            if hole is None:
-                arm_end = "unknown"  # no cell feature to retract along: only the robot will know
-            else:
-                target = state.world_T_tcp.copy()
-                target[:3, 3] += EXTRACT_LIFT_M * self.features[hole].world_T_feature[:3, 2]
-                q_end = solve_nearest(self.robot, self.frames, target, q0, 1.0)
-        return Segment(index, st, SegmentKind.TASK, q0.copy(), q_end, state.mode, arm_end=arm_end)
+        if spec is None:
+            return Segment(index, st, SegmentKind.TASK, q0.copy(), q0.copy(), state.mode, arm_end="unknown")
+        arm_end_kind: ArmEnd = spec.arm_end
+        effect = spec.effect
+        if effect.arm == "still" or (effect.arm in ("lift", "retreat") and effect.distance_m == 0.0):
+            return Segment(index, st, SegmentKind.TASK, q0.copy(), q0.copy(), state.mode, arm_end=arm_end_kind)
+        hole = resolve_name(st.args[1], tuple(self.features)) if len(st.args) > 1 else None
+        grip = state.objects.grip
+        if grip is not None and st.args and resolve_name(st.args[0], (grip.name,)) is None:
+            grip = None  # the task names another object than the one held: no seat to predict
+        target = arm_end(effect, state.world_T_tcp, None if hole is None else self.features[hole].world_T_feature,
+                         grip, state.objects.depths.get(grip.name) if grip is not None else None)
+        if target is None:  # no hole to move along or no known grip: only the robot will know
+            return Segment(index, st, SegmentKind.TASK, q0.copy(), q0.copy(), state.mode, arm_end="unknown")
+        try:
+            q_end = solve_nearest(self.robot, self.frames, target, q0, 1.0)
+        except PlanRefused:
+            if effect.arm != "seat":
+                raise
+            # a seat the arm cannot reach: the robot will fail or find it; the plan does not guess
+            return Segment(index, st, SegmentKind.TASK, q0.copy(), q0.copy(), state.mode, arm_end="unknown")
+        return Segment(index, st, SegmentKind.TASK, q0.copy(), q_end, state.mode, arm_end=arm_end_kind)
+
+    def _objects_after(self, st: TaskCall, state: InterpreterState) -> TaskObjects:
+        """The objects after the task ``st``: its effect on them, the tool where the gripper
+        closed or opened (a release lets go before it retreats)."""
+        spec = TASKS.get(st.name) or TASKS.get(st.name.lower())
+        if spec is None:
+            return state.objects
+        return state.objects.after(spec.effect, tuple(st.args), state.world_T_tcp)
 
     def _rates(self, st: Move | Drive | Draw | Rotate | Moves, state: InterpreterState) -> _Rates:
         lim = self.limits
@@ -342,7 +383,9 @@ class Plan:
     q_final: np.ndarray
     refusal: PlanRefused | None = None
     start_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    after_task: str | None = None  # a task whose end pose only the robot knows: q_final is before it
+    after_task: str | None = None
+    """A task whose exact end only the robot knows: ``q_final`` is its predicted end (insert_peg
+    with a known grip) or the pose before it, and nothing that moves the arm was planned after it."""
 
     @classmethod
     def of(cls, segments: Sequence[Segment], q_start: np.ndarray, end: InterpreterState,
@@ -523,18 +566,22 @@ def plan_program(
     start_q: Sequence[float] | np.ndarray | None = None,
     limits: MotionLimits | None = None,
     zones: InterferenceZones | None = None,
+    objects: TaskObjects | None = None,
 ) -> Plan:
     """Plan every statement of ``program`` in order, stopping at the first refusal.
 
     ``start_q`` defaults to the cell's home pose, or (no cell) to zero clipped into the joint
-    ranges. Raises ``InputError`` only for a bad start or a cell for another robot.
+    ranges. ``objects``: the movable objects at the start and the grip (default: the cell's as
+    loaded, nothing held). Raises ``InputError`` only for a bad start or a cell for another robot.
     """
     if cell is not None and cell.robot.name != robot.name:
         raise InputError(f"cell {cell.name!r} holds robot {cell.robot.name!r}, not {robot.name!r}")
     if start_q is None:
         start_q = cell.q_home if cell is not None else np.clip(np.zeros(robot.dof), robot.lower, robot.upper)
     frames = CellFrames.from_cell(cell) if cell is not None else CellFrames.identity()
-    interp = Interpreter(robot, start_q, frames, limits, cell.features if cell is not None else None, zones)
+    if objects is None and cell is not None:
+        objects = TaskObjects.of_cell(cell)
+    interp = Interpreter(robot, start_q, frames, limits, cell.features if cell is not None else None, zones, objects)
     q_start = interp.state.q.copy()
     segments: list[Segment] = []
     refusal: PlanRefused | None = None

@@ -129,13 +129,14 @@ def planner_failure(exc: BaseException, what: str) -> InputError:
     return InputError(f"the statements cannot be planned: {type(exc).__name__}: {exc}")
 
 
-def plan_or_refuse(statements, robot, cell, start_q: np.ndarray) -> Plan:
-    """``plan_program`` from ``start_q``; a numerical failure of the planner on what it was given
-    (an overflow, a NaN reaching an index) is refused as ``InputError`` naming it, never raised
-    as itself."""
+def plan_or_refuse(statements, robot, cell, start_q: np.ndarray, objects=None) -> Plan:
+    """``plan_program`` from ``start_q`` (``objects``: the movable objects and the grip at the
+    start, ``shared.motion.task_effects.TaskObjects``; default the cell's as loaded); a numerical
+    failure of the planner on what it was given (an overflow, a NaN reaching an index) is refused
+    as ``InputError`` naming it, never raised as itself."""
     try:
         with np.errstate(all="ignore"):
-            return plan_program(list(statements), robot, cell, start_q=start_q)
+            return plan_program(list(statements), robot, cell, start_q=start_q, objects=objects)
     except TeleprogError:
         raise
     except PLANNER_FAILURES as exc:

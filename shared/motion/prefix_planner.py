@@ -25,6 +25,7 @@ from shared.motion.interpreter import Interpreter, InterpreterState, Plan
 from shared.motion.plan_check import PLANNER_FAILURES, planner_failure
 from shared.motion.refusal import PlanRefused
 from shared.motion.segment import Segment
+from shared.motion.task_effects import TaskObjects
 from shared.robots.model import Robot
 
 
@@ -32,10 +33,13 @@ class PrefixPlanner:
     """``plan_program(statements, robot, cell, start_q)`` for successive versions of a program,
     re-planning only from the first statement that changed since the last call."""
 
-    def __init__(self, robot: Robot, cell: Cell, start_q: Sequence[float] | np.ndarray) -> None:
+    def __init__(self, robot: Robot, cell: Cell, start_q: Sequence[float] | np.ndarray,
+                 objects: TaskObjects | None = None) -> None:
+        """``objects``: the movable objects and the grip at the start (default: the cell's as loaded)."""
         if cell.robot.name != robot.name:
             raise InputError(f"cell {cell.name!r} holds robot {cell.robot.name!r}, not {robot.name!r}")
-        self._interp = Interpreter(robot, start_q, CellFrames.from_cell(cell), None, cell.features, None)
+        self._interp = Interpreter(robot, start_q, CellFrames.from_cell(cell), None, cell.features, None,
+                                   TaskObjects.of_cell(cell) if objects is None else objects)
         self._statements: list[Statement] = []  # the last version planned
         self._segments: list[Segment] = []  # its segments up to its first refusal
         self._states: list[InterpreterState] = [self._interp.state]  # the state before each segment, and after the last

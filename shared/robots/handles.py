@@ -86,6 +86,37 @@ def tool_goal(world_T_handle: np.ndarray, handle_T_tcp: np.ndarray) -> np.ndarra
     return _pose(world_T_handle, "handle pose") @ _pose(handle_T_tcp, "grip")
 
 
+FINE_FAR_M = 0.10
+"""Clearance (m) from the tool to the nearest object or the ground at and beyond which a drag moves
+the tool as far as the handle."""
+FINE_NEAR_M = 0.01
+"""Clearance at and below which a drag moves the tool ``FINE_GAIN`` of the handle's motion."""
+FINE_GAIN = 0.25
+
+
+def fine_gain(clearance_m: float | None) -> float:
+    """How much of a handle's motion the tool follows at ``clearance_m`` from the nearest object
+    or the ground (None: nothing near): 1 far off, falling linearly to ``FINE_GAIN`` near contact,
+    so the last centimetres take four times the hand's travel."""
+    if clearance_m is None or not np.isfinite(clearance_m) or clearance_m >= FINE_FAR_M:
+        return 1.0
+    t = (max(clearance_m, FINE_NEAR_M) - FINE_NEAR_M) / (FINE_FAR_M - FINE_NEAR_M)
+    return float(FINE_GAIN + (1.0 - FINE_GAIN) * t)
+
+
+def scaled_step(world_T_goal: np.ndarray, world_T_was: np.ndarray, world_T_now: np.ndarray, gain: float) -> np.ndarray:
+    """``world_T_goal`` moved by ``gain`` times the handle's step from ``world_T_was`` to
+    ``world_T_now``: the translation scaled, the turn (about the goal's own point, in world
+    axes) scaled in angle. Accumulated step by step over a drag, a gain that changes as the tool
+    nears something never throws the goal back."""
+    goal, was, now = _pose(world_T_goal, "goal"), _pose(world_T_was, "handle pose"), _pose(world_T_now, "handle pose")
+    out = goal.copy()
+    out[:3, 3] = goal[:3, 3] + gain * (now[:3, 3] - was[:3, 3])
+    turn = pin.log3(now[:3, :3] @ was[:3, :3].T)
+    out[:3, :3] = pin.exp3(gain * turn) @ goal[:3, :3]
+    return out
+
+
 def joint_handle(robot: Robot, q: np.ndarray, joint: int, world_T_base: np.ndarray) -> np.ndarray:
     """``world_T_handle`` of joint ``joint`` (1-based) at ``q``: at the joint's origin, z along
     the axis about which the joint turns positive."""

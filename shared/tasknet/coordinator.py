@@ -29,6 +29,9 @@ from shared.tasknet.taskspace import GroundAction, TaskSpace
 MAX_FIRINGS_PER_STATE = 8
 """How many actions one observed state may complete (a coarse step can finish two: a release
 that also ends a mate is still two actions)."""
+MAX_FOLLOW_ACTIONS = 8
+"""How many actions :meth:`TaskCoordinator.follow` may find between a marking and a cell that
+jumped (a whole submitted transfer is four)."""
 
 
 @dataclass(frozen=True)
@@ -59,15 +62,16 @@ class TaskCoordinator:
         self._at_marking: dict[frozenset[str], tuple[tuple[tuple[GroundAction, tuple[str, ...]], ...], tuple[str, ...]]] = {}
 
     # -- the net at the current marking ----------------------------------------------------------
-    def enabled(self) -> list[GroundAction]:
+    def enabled(self, marking: frozenset[str] | None = None) -> list[GroundAction]:
         """Actions whose preconditions hold and whose results are not already all holding
         (a C/E net's event is enabled when its pre-conditions hold and its post-conditions,
-        apart from side conditions, do not)."""
+        apart from side conditions, do not), at ``marking`` (default: the current one)."""
+        m = self.marking if marking is None else marking
         out = []
         for act in self.space.actions:
-            if not all(a in self.marking for a in act.pre):
+            if not all(a in m for a in act.pre):
                 continue
-            if any(a in self.marking for a in self._added(act)):
+            if any(a in m for a in self._added(act)):
                 continue
             out.append(act)
         return out
@@ -112,6 +116,62 @@ class TaskCoordinator:
             wanted = tuple(dict.fromkeys(a for act, _ in enabled for a in self._changes(act)))
             kept = self._at_marking[self.marking] = (enabled, wanted)
         return kept
+
+    def follow(self, state: CellState, t: float | None = None, statement: int | None = None) -> list[RecognisedAction] | None:
+        """The cell jumped to ``state`` (a submitted range, a report moved it at once): fire the
+        shortest sequence of enabled actions (at most ``MAX_FOLLOW_ACTIONS``; the task space's
+        order breaks ties) after which the marking agrees with every atom ``state`` shows. The
+        actions fired, ``[]`` when the marking agrees already, None (nothing changed) when no such
+        sequence exists: the state is left to the operator (:meth:`unexplained`)."""
+        truth = self.contacts.evaluate(state)
+        self._last_truth.update(truth)
+        goal = frozenset(a for a, v in truth.items() if v)
+        path = self.path_to(goal)
+        return None if path is None else self._fire(path, t, statement)
+
+    def path_to(self, goal: frozenset[str], start: frozenset[str] | None = None) -> list[GroundAction] | None:
+        """The shortest run of enabled actions (at most ``MAX_FOLLOW_ACTIONS``; the task space's
+        order breaks ties) from ``start`` (default: the marking) to the marking ``goal``: ``[]``
+        when they are the same, None when no such run exists."""
+        here = self.marking if start is None else start
+        if here == goal:
+            return []
+        frontier: list[tuple[frozenset[str], tuple[GroundAction, ...]]] = [(here, ())]
+        seen = {here}
+        for _ in range(MAX_FOLLOW_ACTIONS):
+            nxt = []
+            for marking, path in frontier:
+                for act in self.enabled(marking):
+                    after = frozenset((marking - set(act.delete)) | set(act.post))
+                    if after in seen:
+                        continue
+                    if after == goal:
+                        return [*path, act]
+                    seen.add(after)
+                    nxt.append((after, (*path, act)))
+            frontier = nxt
+            if not frontier:
+                break
+        return None
+
+    def _fire(self, acts: Sequence[GroundAction], t: float | None, statement: int | None) -> list[RecognisedAction]:
+        done = []
+        for act in acts:
+            self.marking = frozenset((self.marking - set(act.delete)) | set(act.post))
+            rec = RecognisedAction(act.text, len(self.actions), t, statement, tuple(self.ordered(self.marking)))
+            self.actions.append(rec)
+            done.append(rec)
+        return done
+
+    def take(self, state: CellState) -> bool:
+        """The marking becomes what ``state`` shows, with no action recognised (a re-sync: the
+        cell is taken from the other side as it is). True when the marking changed."""
+        truth = self.contacts.evaluate(state)
+        self._last_truth.update(truth)
+        marking = frozenset(a for a, v in truth.items() if v)
+        changed = marking != self.marking
+        self.marking = marking
+        return changed
 
     def unexplained(self, state: CellState) -> dict[str, bool]:
         """Every atom whose truth in ``state`` disagrees with the marking: ``{atom: observed}``."""

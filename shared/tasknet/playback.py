@@ -29,7 +29,8 @@ from shared.tasknet.taskspace import TaskSpace
 SAMPLE_DT_S = 0.01
 """The time step (s) at which a planned motion is sampled for recognition."""
 TASK_STEPS = 25
-"""Samples along a task call that moves the arm (``extract_peg``'s retraction)."""
+"""Samples along a task call that moves the arm (``extract_peg``'s lift, ``insert_peg``'s descent
+to the seat its effect names)."""
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,9 @@ def play(plan: Plan, cell, world: ObjectWorld, dt: float = SAMPLE_DT_S) -> Itera
         if seg.duration <= 0.0:
             continue
         ts = np.append(np.arange(t0, t0 + seg.duration, dt), t0 + seg.duration)
-        for t, q in zip(ts, plan.sample(ts).q):
+        qs = plan.sample(ts).q
+        qs[-1] = seg.q_end  # the plan's clock gives the end instant to the tasks after it (no time of their own)
+        for t, q in zip(ts, qs):
             yield q, float(t), number
 
 

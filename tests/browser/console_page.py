@@ -278,8 +278,9 @@ class ConsolePage:
         self.click("Submit range")
 
     def sent_lines(self) -> list[dict[str, str]]:
-        """The sent list as the Submit tab shows it: number, text and status of each line."""
-        return [m.groupdict() for m in self.SENT_LINE.finditer(self.page.inner_text("body"))]
+        """The sent list as the Submit tab shows it (newest first), returned oldest first: number,
+        text and status of each line."""
+        return [m.groupdict() for m in self.SENT_LINE.finditer(self.page.inner_text("body"))][::-1]
 
     def wait_sent_final(self, total: int, timeout: float = 60.0) -> list[dict[str, str]]:
         """Wait until the page lists ``total`` sent statements, none pending, and return the

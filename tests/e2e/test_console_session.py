@@ -247,8 +247,8 @@ def test_regimes_free_streams_and_operation_goes_one_step_with_its_mode_as_a_lin
 
 
 # --- the peg transfer of thesis §4.6, sent in pieces (each task call ends one, so every piece is
-# seen done before the next); the console tracks what the robot holds, sees the divergence the
-# unpredictable insertion leaves, and re-syncs the arm and the peg.
+# seen done before the next); the console tracks what the robot holds, takes the insertion's end
+# from the robot within the task's declared tolerance (no divergence), and re-syncs the arm and the peg.
 
 PIECES = [
     ["SPEED 50 %", "MOVES TO (0, -80, 160) mm (180, 0, 0) deg IN WORK", "EVENT above_peg",
@@ -283,8 +283,9 @@ def test_peg_transfer_through_the_api(up: RunningConsole) -> None:
     wait_for("the robot holding", lambda: call(up, "GET", "/api/remote")["held"] == "peg")
     _send(up, PIECES[1])
     _send(up, PIECES[2])
-    # the insertion's end is the robot's to know: the console offers a re-sync
-    wait_for("divergence", lambda: call(up, "GET", "/api/divergence")["diverged"])
+    # the insertion's end is the robot's to report: within insert_peg's declared tolerance of the
+    # seat the model names, the console takes it as the program's start and tells no divergence (issue 37)
+    wait_for("no divergence after the insertion", lambda: (d := call(up, "GET", "/api/divergence"))["checked"] and not d["diverged"])
     _send(up, PIECES[3])
     remote = call(up, "GET", "/api/remote")
     assert remote["held"] is None and "peg" in remote["object_poses"]
