@@ -124,9 +124,10 @@ class MonitorPanel:
     def show_program(self, view: ProgramView) -> None:
         self.range.follow(view)
         self.needs.refresh()
-        empty = view.empty_index == 0  # nothing to submit: the button says so by being off
-        if self.submit.disabled != empty:
-            self.submit.disabled = empty
+        empty = view.empty_index == 0  # nothing to submit: the buttons say so by being off
+        for button in (self.submit, self.needs.button):
+            if button is not None and button.disabled != empty:
+                button.disabled = empty
 
     def show(self, view: SentListView) -> None:
         self._view = view

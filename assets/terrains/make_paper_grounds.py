@@ -3,7 +3,7 @@
 * ``flat_ground.ply``: a flat square 2 m x 2 m at z = 0, a 40 x 40 grid of 50 mm cells (3200
   triangles, so the console's red contact triangles stay local);
 * ``stone.ply``: a rock, the convex hull of a flattened, seeded-perturbed ellipsoid with its base
-  at z = 0 and its centre on the z axis (metres; the cell places and sizes it, README: the paper
+  at z = 0 and its centre on the z axis (metres; the cell places and sizes it, docs/terrain.md: the paper
   gives no dimensions).
 
 Run from the project root: ``.venv/bin/python assets/terrains/make_paper_grounds.py``; the test

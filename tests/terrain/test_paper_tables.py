@@ -1,7 +1,7 @@
 """Seed 004's flat-ground and stone experiments (§4.1, §4.2; Tables 3, 4 and 5) on the rover
 cells mounted z down: the flat cell's ground height is set from Table 3's minimum at the clear
 pose, and the colliding pose is then a prediction, compared with Table 4 sensor by sensor. The
-counts asserted are what the model gives; the README's tables set them beside the paper's."""
+counts asserted are what the model gives; the tables in docs/terrain.md set them beside the paper's."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ TABLE4 = [C] * 24 + [0.039, 0.040, 0.044, 0.041, 0.043, 0.034, 0.029, 0.031] + [
 TABLE5 = [C] * 10 + [0.053, 0.046, 0.049, 0.055, 0.062, 0.070, 0.078, 0.086, 0.093, 0.100, 0.107, 0.109,
                      0.110, 0.108, 0.106, 0.101, 0.097, 0.094, 0.091, 0.085, 0.079, 0.079, 0.081] + [C] * 3
 
-#: what the model gives (README, "Seed 004's flat-ground and stone experiments")
+#: what the model gives (docs/terrain.md, "Seed 004's flat-ground and stone experiments")
 OURS_TABLE4_COLLIDING = 9  # sensors 6-14; the paper: 28
 OURS_TABLE5_COLLIDING = 17  # sensors 1-14 and 34-36; the paper: 13
 
@@ -97,7 +97,7 @@ def test_flat_ground_clear_pose_is_table3(flat) -> None:
 
 def test_flat_ground_colliding_pose_against_table4() -> None:
     """The prediction, through `teleprog terrain check --json`: a collision, with fewer colliding
-    sensors than Table 4's 28 (README explains why a plane cannot give Table 4's pattern)."""
+    sensors than Table 4's 28 (docs/terrain.md explains why a plane cannot give Table 4's pattern)."""
     data = _head(FLAT, COLLIDING)
     head = data["head_part"]
     assert data["exact"]["in_collision"] and data["sensors"]["in_collision"] and head["in_collision"]

@@ -73,9 +73,9 @@ def test_submit_is_off_with_nothing_to_submit(console) -> None:
     session, page = console
     assert session.program.view().empty_index == 0  # the session starts with an empty program
     page.monitor.show_program(session.program.view())  # what a connected page is sent
-    assert page.monitor.submit.disabled
+    assert page.monitor.submit.disabled and page.monitor.needs.button.disabled  # Submit range, Preview and submit
     page.monitor.show_program(session.program.insert(parse_program("DRIVE J1 TO 5 deg").statements[0]))
-    assert not page.monitor.submit.disabled
+    assert not page.monitor.submit.disabled and not page.monitor.needs.button.disabled
 
 
 def test_the_regime_menu_names_regimes_in_the_operators_words(console) -> None:
