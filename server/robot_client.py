@@ -145,6 +145,8 @@ class RobotAccount:
 
     welcome: Welcome
     reports: tuple[StatusReport, ...]
+    client_id: str = ""
+    """this client's identity: what the robot ran for it is its own history (others' is not listed)"""
 
 
 class RobotClient(TelemetryChannel):
@@ -243,7 +245,7 @@ class RobotClient(TelemetryChannel):
         with self._account_lock:
             self._account_listeners.append(listener)
             if self._account is not None:
-                self._delivery.post(listener, RobotAccount(self._account, tuple(self.reports)))
+                self._delivery.post(listener, RobotAccount(self._account, tuple(self.reports), self.sender.client_id))
 
     def on_restart(self, listener: Callable[[SessionRestart], None]) -> None:
         """``listener(restart)`` runs when a welcome comes from a new robot session."""
@@ -430,7 +432,7 @@ class RobotClient(TelemetryChannel):
                     with self._account_lock:
                         self._account = msg
                         for listener in self._account_listeners:
-                            self._delivery.post(listener, RobotAccount(msg, ()))
+                            self._delivery.post(listener, RobotAccount(msg, (), self.sender.client_id))
                 self.halted = msg.halted
                 self.command_watch.interval = msg.heartbeat_s
                 await self._send_all(self.sender.on_welcome(msg))

@@ -3,8 +3,9 @@
 A console that starts again (after a crash, a kill, an upgrade) while its robot holds statements
 must show them before anybody presses Resume: Resume runs what is held, and an operator may only
 resume what they can see. The robot's first welcome to this console lists what it runs and holds
-(``Welcome.holds``) and the newest statements it finished (``Welcome.ran``), with their numbers,
-statements and statuses (``shared.wire.messages.HeldStatement``). They join the sent list before
+(``Welcome.holds``, whoever sent it) and the newest statements it finished (``Welcome.ran``, of
+which those this console's identity sent are its own history), with their numbers, statements
+and statuses (``shared.wire.messages.HeldStatement``). They join the sent list before
 anything this console sends, marked as from before this console (``Sent.before``), and the
 reports the robot replays next move them on as any other. Reports of older statements the
 account does not list (numbered before this console arrived) are history the list cannot show:
@@ -34,7 +35,9 @@ def take_account(dispatch: Dispatch, account: RobotAccount) -> None:
     from server.console.dispatch import Sent
 
     ctx, welcome = dispatch._ctx, account.welcome
-    listed = [h for h in (*welcome.ran, *welcome.holds) if h.statement is not None]
+    # what the robot holds, whoever sent it (a resume runs it all); of what it ran, this identity's
+    ran = [h for h in welcome.ran if h.client_id == account.client_id]
+    listed = [h for h in (*ran, *welcome.holds) if h.statement is not None]
     with ctx.lock:
         dispatch.history_below = welcome.numbered + 1
         known = {s.number for s in dispatch.sent if s.number is not None}
