@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from fastapi import Depends, FastAPI
 
-from server.api import arm, events, objects, preview, program, readiness, recordings, robot, session, task, terrain, trials
+from server.api import arm, events, objects, preview, program, readiness, recordings, robot, session, task, task_goal, terrain, trials
 from server.api.deps import strict_json_body
 from server.http_errors import ERROR_RESPONSES
 
 
 def include_routers(app: FastAPI) -> None:
-    for module in (session, arm, objects, program, preview, robot, readiness, terrain, recordings, task, trials):
+    for module in (session, arm, objects, program, preview, robot, readiness, terrain, recordings, task, task_goal, trials):
         app.include_router(module.router, dependencies=[Depends(strict_json_body)], responses=ERROR_RESPONSES)
     app.include_router(events.router)

@@ -109,7 +109,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--svg", metavar="OUT", help="write an SVG picture to OUT ('-' for stdout)")
     s.add_argument("--png", metavar="OUT", help="write a PNG picture to OUT")
     s.set_defaults(handler=_cmd_show)
-    from server.cli.commands import net_recognise, net_refine
+    from server.cli.commands import net_plan, net_recognise, net_refine
 
     net_recognise.register(nsub)
     net_refine.register(nsub)
+    net_plan.register_net(nsub)
