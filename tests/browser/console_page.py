@@ -299,6 +299,14 @@ class ConsolePage:
         found = self.page.eval_on_selector_all(f'[data-marking="{kind}"]', "els => els.map(e => e.getAttribute('data-atoms'))")
         return [a for a in found[0].split("|") if a] if found else []
 
+    def robot_end_taken(self, timeout: float = PAGE_WAIT_S) -> None:
+        """After a contact task (an insertion) that ended done within its declared tolerance: the
+        console takes the robot's arm as the program's start by itself; no divergence to re-sync."""
+        self.tab("Program")
+        self.text_appears(r"Starts from: re-synced from robot", timeout=timeout)
+        assert not self.console.api("GET", "/api/divergence").json()["diverged"]
+        assert self.page.get_by_role("button", name="Re-sync from robot", exact=True).is_hidden()
+
     def resync_when_offered(self, timeout: float = 30.0) -> None:
         """Wait for the divergence warning and its re-sync button, then click it."""
         button = self.page.get_by_role("button", name="Re-sync from robot", exact=True)

@@ -76,10 +76,9 @@ def test_peg_transfer_from_the_page(ui: ConsolePage) -> None:
     sent = send_piece(ui, PIECES[1], sent)  # extract it from HOLE1
     sent = send_piece(ui, PIECES[2], sent)  # carry it over HOLE2 and insert it in force mode
 
-    # the insertion ends where only the robot knows: the page offers a re-sync, the operator takes it
-    ui.resync_when_offered()
-    ui.tab("Program")
-    ui.text_appears(r"Starts from: re-synced from robot")
+    # the insertion ends where contact decides: within insert_peg's declared tolerance the console
+    # takes the robot's end as the program's start by itself (issue 37: success looks like success)
+    ui.robot_end_taken()
     remote = ui.console.api("GET", "/api/remote").json()
     arm = ui.session()["arm"]
     # the virtual arm stands where the robot does (the physical arm settles by a few 1e-5 rad after)

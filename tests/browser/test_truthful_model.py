@@ -165,7 +165,7 @@ def test_after_grasp_and_extract_the_virtual_arm_holds_the_peg_where_the_robot_d
 
 def test_a_peg_seated_in_hole2_is_no_collision_and_the_preview_says_one_thing(ui: ConsolePage) -> None:
     send_piece(ui, PIECES[2])  # carry it over HOLE2 and insert it in force mode
-    ui.resync_when_offered()  # the insertion's end is the robot's to know
+    ui.robot_end_taken()  # the insertion's end, within its tolerance, is taken from the robot
     send_piece(ui, PIECES[3])  # position mode, let go
     wait_for(lambda: ui.console.api("GET", "/api/remote").json()["held"] is None, what="the robot let go")
     ui.tab("Drive")
