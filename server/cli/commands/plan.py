@@ -92,7 +92,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(f"total {plan.duration:.3f} s over {len(rows)} statement(s)")
         print("final joints: " + "  ".join(f"{v:9.3f}" for v in final_deg) + "  deg")
         if plan.after_task is not None:
-            print(f"  (where TASK {plan.after_task} starts; the robot reports where it ends)")
+            print(f"  (where TASK {plan.after_task} is predicted to end, within the tolerance its effect declares; "
+                  "the robot reports where it really ends)")
     if plan.refusal is not None:
         print(f"teleprog: error: {plan.refusal}", file=sys.stderr)
         return 1
