@@ -106,7 +106,8 @@ def test_the_timeline_shows_the_ghost_and_the_sent_list_as_they_were(replay: Run
     # step back to the last event before: the DRIVE starting to run
     ui.click("Previous event")
     ui.text_appears(rf"t = {(drive_running - start) * 1e-9:.2f} s of")
-    assert re.search(r"last event \([\d.]+ s\): #2 DRIVE J1 TO \S+ deg: running", ui.page.inner_text("body"))
+    # the time line and the last-event line are two elements of the page, drawn one after the other
+    ui.text_appears(r"last event \([\d.]+ s\): #2 DRIVE J1 TO \S+ deg: running")
     ui.click("Next event")
     ui.text_appears(rf"t = {(drive_done - start) * 1e-9:.2f} s of")
 
