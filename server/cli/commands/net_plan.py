@@ -17,16 +17,12 @@ from server.cli import print_json
 
 def _cmd_plan(args: argparse.Namespace) -> int:
     from shared.cells.loader import load_cell
-    from shared.errors import InputError
     from shared.tasknet.action_program import action_statements, cell_marking, program_text
     from shared.tasknet.goals import plan_goal
-    from shared.tasknet.taskspace import load_task_space, task_file_for_cell
+    from server.cli.commands.net_recognise import cell_task_space
 
     cell = load_cell(args.cell)
-    task_file = args.task or task_file_for_cell(cell.name)
-    if task_file is None:
-        raise InputError(f"cell {cell.name!r} has no task file (assets/tasks/{cell.name}.toml); name one with --task")
-    space = load_task_space(task_file)
+    space = cell_task_space(cell, args.task)
     goal = [g for text in args.goal for g in text.split(";")]
     plan = plan_goal(space, cell_marking(space, cell), goal, keep=not args.exact)
     rows = action_statements(space, cell, plan.actions)

@@ -13,19 +13,27 @@ import argparse
 from server.cli import print_json
 
 
+def cell_task_space(cell, task: str | None):
+    """The task space ``--task`` names, else the cell's own (``assets/tasks/<cell>.toml``); a
+    one-line ``InputError`` when the cell has none."""
+    from shared.errors import InputError
+    from shared.tasknet.taskspace import load_task_space, task_file_for_cell
+
+    task_file = task or task_file_for_cell(cell.name)
+    if task_file is None:
+        raise InputError(f"cell {cell.name!r} has no task file (assets/tasks/{cell.name}.toml); name one with --task")
+    return load_task_space(task_file)
+
+
 def _cmd_recognise(args: argparse.Namespace) -> int:
     from shared.cells.loader import load_cell
     from shared.errors import InputError
     from shared.language.parser import parse_file
     from shared.tasknet.jsonform import save_net
     from shared.tasknet.playback import recognise_program
-    from shared.tasknet.taskspace import load_task_space, task_file_for_cell
 
     cell = load_cell(args.cell)
-    task_file = args.task or task_file_for_cell(cell.name)
-    if task_file is None:
-        raise InputError(f"cell {cell.name!r} has no task file (assets/tasks/{cell.name}.toml); name one with --task")
-    space = load_task_space(task_file)
+    space = cell_task_space(cell, args.task)
     parsed = parse_file(args.program)
     if not parsed.ok:
         raise InputError(f"{args.program}: " + "; ".join(parsed.error_lines()))
