@@ -52,9 +52,7 @@ from shared.spatial import invert, matrix_to_rpy
 if TYPE_CHECKING:
     from server.console.control import ControlLock
     from server.console.modes import Modes
-    from server.console.previewer import Previewer
-    from server.console.program_desk import ProgramDesk
-    from server.console.terrain_tools import TerrainTools
+    from server.console.ports import GroundContacts, PreviewRun, StrokeTaker
 
 Step = Callable[[np.ndarray], "JogResult | np.ndarray"]
 
@@ -62,7 +60,7 @@ Step = Callable[[np.ndarray], "JogResult | np.ndarray"]
 class VirtualArm:
     """The operator's arm and the virtual world's objects."""
 
-    def __init__(self, ctx: ConsoleContext, collision: CellCollision, control: ControlLock, modes: Modes, desk: ProgramDesk, preview: Previewer, terrain: TerrainTools) -> None:
+    def __init__(self, ctx: ConsoleContext, collision: CellCollision, control: ControlLock, modes: Modes, desk: StrokeTaker, preview: PreviewRun, terrain: GroundContacts) -> None:
         self._ctx = ctx
         self.robot = ctx.robot
         self.collision = collision

@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -66,10 +65,11 @@ from server.console.events import (
     RangeSubmitted,
     SentChanged,
 )
-from server.console.robot_account import take_account
+from server.console.robot_account import AccountBooks
+from server.console.sent import Sent
 from server.console.robot_seam import RobotLink
 from server.console.statement_checks import checked_statement, statement_refusal, statement_text
-from server.console.views import Caller, SentListView, SentView
+from server.console.views import Caller, SentListView
 from server.robot_client import RobotRestarted
 from shared.errors import InputError, TeleprogError
 from shared.language.statements import Mode, SetMode, Statement, TaskCall, is_action
@@ -84,10 +84,9 @@ from shared.wire.session import SessionRestart
 if TYPE_CHECKING:
     from server.console.arm import VirtualArm
     from server.console.control import ControlLock
-    from server.console.link_status import LinkStatus
     from server.console.modes import Modes
     from server.console.program_desk import ProgramDesk
-    from server.console.remote import RemoteMirror
+    from server.console.ports import LinkRead, RemoteSink
 
 log = logging.getLogger(__name__)
 
@@ -98,47 +97,14 @@ NOT_RUN = frozenset({SentStatus.REJECTED, SentStatus.SKIPPED, SentStatus.ABORTED
 NO_ROBOT = "no robot is configured for this console (started with --no-robot)"
 
 
-@dataclass
-class Sent:
-    """One statement in the sent list."""
-
-    id: int
-    statement: Statement
-    status: SentStatus
-    submitted_at: float
-    comm: int  # console-local communication id
-    number: int | None = None
-    reason: str | None = None
-    answered_at: float | None = None
-    started_at: float | None = None
-    finished_at: float | None = None
-    robot_started_at: float | None = None  # the robot's clock (StatusReport.robot_time)
-    robot_finished_at: float | None = None
-    before: bool = False  # sent before this console started: the robot's account (server.console.robot_account)
-
-    @property
-    def final(self) -> bool:
-        return self.status in FINAL_SENT
-
-    def view(self) -> SentView:
-        run = self.finished_at - self.started_at if self.finished_at is not None and self.started_at is not None else None
-        return SentView(
-            id=self.id, number=self.number, text=statement_text(self.statement), statement=self.statement,
-            status=self.status, reason=self.reason, submitted_at=self.submitted_at, answered_at=self.answered_at,
-            started_at=self.started_at, finished_at=self.finished_at, run_s=run,
-            robot_run_s=None if self.robot_finished_at is None or self.robot_started_at is None
-            else self.robot_finished_at - self.robot_started_at, before=self.before,
-        )
-
-
-class Dispatch:
+class Dispatch(AccountBooks):
     """The robot seam, the sent list and the statuses."""
 
     def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes, desk: ProgramDesk, arm: VirtualArm) -> None:
         self._ctx = ctx
         self._control, self._modes, self._desk, self._arm = control, modes, desk, arm
-        self.remote: RemoteMirror | None = None  # set by the session
-        self.link: LinkStatus | None = None  # set by the session
+        self.remote: RemoteSink | None = None  # set by the session
+        self.link: LinkRead | None = None  # set by the session
         self.robot: RobotLink | None = None
         self.loop: asyncio.AbstractEventLoop | None = None
         self.url: str | None = None
@@ -158,7 +124,7 @@ class Dispatch:
         robot.on_report(self.on_report)
         robot.on_telemetry(self.remote.take_frame, gate=self.remote.gate_frame)
         robot.on_restart(self.on_robot_restart)
-        robot.on_account(lambda welcome: take_account(self, welcome))
+        robot.on_account(self.take_account)
 
     @property
     def connected(self) -> bool:

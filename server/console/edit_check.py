@@ -19,15 +19,12 @@ from __future__ import annotations
 
 import logging
 import re
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
 
 from shared.errors import TeleprogError
 from shared.language.formatter import format_statement
 from shared.program.editor import Editor
 from shared.program.rules import Refusal, Rule
-
-if TYPE_CHECKING:
-    from server.console.program_desk import ProgramDesk
 
 log = logging.getLogger(__name__)
 
@@ -43,24 +40,23 @@ def plain(message: str) -> str:
     return _REASON_ID.sub("", _WHEN.sub("", _WHERE.sub("", message)))
 
 
-def rest_breaks(desk: ProgramDesk, before: Editor, trial: Editor) -> Refusal | None:
+PathCheck = Callable[[Editor, int, int], Mapping[int, str]]
+"""``check(editor, start, stop)``: for each statement of ``editor``'s program in ``start..stop-1``
+whose planned path is not clear, why (the previewer's check of that program)."""
+
+
+def rest_breaks(path_not_clear: PathCheck, before: Editor, trial: Editor) -> Refusal | None:
     """Why the edit that turned ``before`` into ``trial`` breaks a statement after it, or None
-    (under the session's lock; the desk's editor is ``before`` on return)."""
+    (under the session's lock)."""
     old, new = before.state.statements, trial.state.statements
-    if desk.preview is None or desk.start.unknown:
-        return None
     first = next((i for i, (a, b) in enumerate(zip(old, new)) if a is not b), min(len(old), len(new)))
     old_index = {id(s): i for i, s in enumerate(old)}
     rest = [i for i in range(first, len(new)) if id(new[i]) in old_index]
     if not rest:
         return None  # nothing that was there before comes after the edit
     try:
-        broken_before = {id(old[i]) for i in desk.preview.path_not_clear(first, len(old))}
-        desk._editor = trial  # noqa: SLF001 - the previewer checks the desk's program: the edited one
-        try:
-            broken_after = desk.preview.path_not_clear(first, len(new))
-        finally:
-            desk._editor = before  # noqa: SLF001
+        broken_before = {id(old[i]) for i in path_not_clear(before, first, len(old))}
+        broken_after = path_not_clear(trial, first, len(new))
     except TeleprogError as exc:  # the planner failed on numbers it was given: the preview will say so
         log.info("the edit's rest was not checked: %s", exc)
         return None

@@ -15,7 +15,7 @@ from server.console.views import LinkView
 
 if TYPE_CHECKING:
     from server.console.dispatch import Dispatch
-    from server.console.recovery import Recovery
+    from server.console.ports import PendingRecoveries
     from server.console.remote import RemoteMirror
 
 log = logging.getLogger(__name__)
@@ -47,7 +47,7 @@ class LinkStatus:
     def __init__(self, ctx: ConsoleContext, dispatch: Dispatch, remote: RemoteMirror) -> None:
         self._ctx = ctx
         self._dispatch, self._remote = dispatch, remote
-        self.recovery: Recovery | None = None  # set by the session
+        self.recovery: PendingRecoveries | None = None  # set by the session
         self._children: Callable[[], dict[str, str]] | None = None
         self._published_at: float | None = None
 

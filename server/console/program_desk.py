@@ -31,7 +31,6 @@ import copy
 import json
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import PurePath
 from typing import TYPE_CHECKING
 
@@ -46,6 +45,7 @@ from server.console.events import Notice, ProgramChanged, SessionEvent
 from server.console.statement_checks import checked_statement
 from server.console.program_entries import EntryViews
 from server.console.program_files import LOAD_PHASES, read_program
+from server.console.program_start import ProgramStart
 from server.console.work import Work
 from server.console.views import (
     Caller,
@@ -65,21 +65,10 @@ from shared.program.generator import Generated, JogMode, ProgramGenerator, Robot
 
 if TYPE_CHECKING:
     from server.console.control import ControlLock
-    from server.console.dispatch import Dispatch
     from server.console.modes import Modes
-    from server.console.previewer import Previewer
+    from server.console.ports import PreviewRun, Submitter
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class ProgramStart:
-    """Where the program starts: a joint vector, where it came from, and whether it is known."""
-
-    q: np.ndarray
-    source: str = "model"  # model | predicted | telemetry
-    unknown: bool = False
-    """The predicted end lies after a task, a stop or a failure whose end only the robot knows."""
 
 
 def _copy_editor(editor: Editor) -> Editor:
@@ -106,8 +95,8 @@ class ProgramDesk(ConsoleLines):
     def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes) -> None:
         self._ctx = ctx
         self._control, self._modes = control, modes
-        self.preview: Previewer | None = None  # set by the session
-        self.dispatch: Dispatch | None = None  # set by the session
+        self.preview: PreviewRun | None = None  # set by the session
+        self.dispatch: Submitter | None = None  # set by the session
         self.objects_at_start: Callable[[], TaskObjects] | None = None
         """The objects and the grip where the program starts (set by the session: the virtual cell's)."""
         self._editor = Editor(strict=ctx.settings.strict_editing)
@@ -291,9 +280,10 @@ class ProgramDesk(ConsoleLines):
         with self._ctx.lock:
             self._control.check(client)
             start = ProgramStart(self.start.q.copy(), self.start.source, self.start.unknown)
+            objects = self.objects_at_start() if self.objects_at_start is not None else None
         name = PurePath(filename).name or "program"
         with Work(self._ctx.bus, self._ctx.clock, "load", f"loading {name}", LOAD_PHASES) as work:
-            read = read_program(text, name, self._ctx.cell, None if start.unknown else start.q, work)
+            read = read_program(text, name, self._ctx.cell, None if start.unknown else start.q, work, objects)
             with self._ctx.lock:
                 self._control.check(client)
                 self.check_not_previewing("load a program")
@@ -306,7 +296,8 @@ class ProgramDesk(ConsoleLines):
                 self._entries = read.entries
                 now = self.start
                 if read.planner is not None and np.array_equal(now.q, start.q) and not now.unknown:  # start unmoved
-                    self._planner = (start.q.tobytes(), read.planner)
+                    # keyed as prefix_planner keys it, so the next change re-plans from where it changed
+                    self._planner = (start.q.tobytes() + _grip_key(objects), read.planner)
                     self._durations = ((tuple(self._editor.state.statements), start.q.tobytes(), False), read.durations)
                 view = self.view()
         n = len(read.state.statements)
@@ -334,6 +325,15 @@ class ProgramDesk(ConsoleLines):
         if busy is not None:
             raise ConflictError(f"cannot {what} while statements {busy[0] + 1}..{busy[1]} are being previewed; only selection is allowed")
 
+    def _path_not_clear_with(self, editor: Editor, start: int, stop: int) -> dict[int, str]:
+        """The previewer's path check of ``editor``'s program (under the lock): it checks the
+        desk's program, so the desk holds ``editor`` for the check and its own one after."""
+        kept, self._editor = self._editor, editor
+        try:
+            return self.preview.path_not_clear(start, stop)
+        finally:
+            self._editor = kept
+
     def _edit(self, op: Callable[[Editor], object], client: Caller | str | None, *, replan: bool = False) -> ProgramView:
         """Apply ``op`` to a copy of the editor and keep it when it succeeds; ``replan``: in free
         editing, re-plan the statements after the edit and refuse it where one of them could no
@@ -345,8 +345,8 @@ class ProgramDesk(ConsoleLines):
             try:
                 result = op(trial)
                 refusal = result if isinstance(result, Refusal) else None
-                if refusal is None and replan and not trial.strict:
-                    refusal = rest_breaks(self, before, trial)
+                if refusal is None and replan and not trial.strict and self.preview is not None and not self.start.unknown:
+                    refusal = rest_breaks(self._path_not_clear_with, before, trial)
                     trial = before if refusal is not None else trial
                 self._editor = trial
                 self._refusal = None if refusal is None else self._refusal_view(refusal)

@@ -20,6 +20,7 @@ from shared.errors import InputError, TeleprogError
 from shared.language.parser import PROGRESS_EVERY, parse_json, parse_program
 from shared.language.statements import is_task
 from shared.motion.prefix_planner import PrefixPlanner
+from shared.motion.task_effects import TaskObjects
 from shared.program.editor import ProgramState
 
 LOAD_PHASES = (("parse", 0.1), ("check", 0.06), ("plan", 0.6), ("format", 0.24))
@@ -36,10 +37,12 @@ class ReadProgram:
     durations: list[float | None] | None = None  # as ``ProgramDesk.durations`` gives them
 
 
-def read_program(text: str, name: str, cell: Cell, start_q: np.ndarray | None, work: Work) -> ReadProgram:
+def read_program(text: str, name: str, cell: Cell, start_q: np.ndarray | None, work: Work,
+                 objects: TaskObjects | None = None) -> ReadProgram:
     """The program of file ``name`` (text, or JSON for a .json name); a broken file or a broken
     rule is an ``InputError`` naming the file and where. ``start_q``: where the program starts
-    (None: unknown, no durations)."""
+    (None: unknown, no durations); ``objects``: the movable objects and the grip there (default:
+    the cell's as loaded)."""
     if name.lower().endswith(".json"):
         work.phase("parse", 1)
         parsed = parse_json(text, name)
@@ -63,7 +66,7 @@ def read_program(text: str, name: str, cell: Cell, start_q: np.ndarray | None, w
     read = ReadProgram(state, EntryViews())
     plan_step = work.phase("plan", len(statements))
     if statements and start_q is not None:
-        planner = PrefixPlanner(cell.robot, cell, start_q)
+        planner = PrefixPlanner(cell.robot, cell, start_q, objects)
         try:
             plan = planner.plan(statements, progress=plan_step)
         except TeleprogError:

@@ -61,17 +61,17 @@ if TYPE_CHECKING:
     from server.console.arm import VirtualArm
     from server.console.control import ControlLock
     from server.console.dispatch import Dispatch
-    from server.console.link_status import LinkStatus
+    from server.console.ports import LinkRead
     from server.console.program_desk import ProgramDesk
 
 
 class RemoteMirror:
     """Telemetry, reported objects, the predicted path, divergence and re-sync."""
 
-    def __init__(self, ctx: ConsoleContext, control: ControlLock, desk: ProgramDesk, arm: VirtualArm, dispatch: Dispatch, link: LinkStatus | None = None) -> None:
+    def __init__(self, ctx: ConsoleContext, control: ControlLock, desk: ProgramDesk, arm: VirtualArm, dispatch: Dispatch, link: LinkRead | None = None) -> None:
         self._ctx = ctx
         self._control, self._desk, self._arm, self._dispatch = control, desk, arm, dispatch
-        self.link = link  # server.console.link_status.LinkStatus, set by the session
+        self.link = link  # the link's status (``LinkStatus``), set by the session
         self._newest: tuple[TelemetryFrame, float] | None = None
         """The newest frame and when it arrived (``ctx.clock``): one tuple, swapped whole, so a
         reader on any thread gets a frame and its time together without the lock."""
