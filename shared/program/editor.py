@@ -40,14 +40,17 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
+
+import numpy as np
 
 from shared.errors import InputError
 from shared.language.statements import Speed, Statement, Until, is_action, is_task
-from shared.language.task_rule import UnknownPose, may_follow, pose_after, why_not
-from shared.program.free_rules import free_edit_refusal
-from shared.program.rules import Refusal, Rule, describe, is_real, program_violations
+from shared.language.task_rule import UnknownPose, may_follow, why_not
+from shared.program import marks as kinds
+from shared.program.free_rules import EditMap, free_edit_refusal
+from shared.program.rules import Refusal, Rule, describe, is_real
 from shared.program.strict_rules import strict_delete, strict_insert, strict_modify, strict_move
 
 log = logging.getLogger(__name__)
@@ -128,18 +131,23 @@ class ProgramState:
     preview: tuple[int, int] | None = None
     anchor: int | None = None
     """The other end of a selected range (``None``: only ``selected`` is selected)."""
+    marks: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """Each statement's kind as bits (``shared.program.marks``): read from the statements when not
+    given; the editor's operations splice the state's own, so an edit reads what it changed."""
 
     def __post_init__(self) -> None:
         statements = tuple(self.statements)
         object.__setattr__(self, "statements", statements)
-        for index, statement in enumerate(statements):
-            if not is_real(statement):
-                raise InputError(
-                    f"statement {index + 1}: a program holds real statements only, got {describe(statement)}"
-                )
-        violations = program_violations(statements)
-        if violations:
-            raise InputError(violations[0].message)
+        marks = self.marks
+        if marks is None or len(marks) != len(statements):
+            marks = kinds.marks_of(statements)
+            object.__setattr__(self, "marks", marks)
+        if (index := kinds.first_not_real(marks)) is not None:
+            raise InputError(
+                f"statement {index + 1}: a program holds real statements only, got {describe(statements[index])}"
+            )
+        if (broken := kinds.first_break(statements, marks)) is not None:
+            raise InputError(broken.message)
         if self.selected is None:
             object.__setattr__(self, "selected", len(statements))
         elif not 0 <= self.selected <= len(statements):
@@ -199,10 +207,7 @@ class ProgramState:
     def unknown_pose(self) -> UnknownPose | None:
         """The task call after which the arm's pose is unknown (only what keeps the arm still may
         follow it: ``shared.language.task_rule``), or ``None`` when the pose is known throughout."""
-        unknown: UnknownPose | None = None
-        for index, statement in enumerate(self.statements):
-            unknown = pose_after(statement, index, unknown)
-        return unknown
+        return kinds.unknown_pose(self.statements, self._marks)
 
     # ---------------------------------------------------------------- selection
 
@@ -253,7 +258,7 @@ class ProgramState:
         if index == self.empty_index:  # at the end: only the task rule can refuse it
             unknown = self.unknown_pose
             return None if may_follow(statement, unknown) else Refusal(Rule.INSERT_AFTER_TASK, why_not(statement, unknown), index - 1)
-        return self._free((*self.statements[:index], statement, *self.statements[index:]), index)
+        return self._free(self._splice(index, index, (statement,)), index)
 
     def check_delete(self, first: int | None = None, last: int | None = None, *, strict: bool = False) -> Refusal | None:
         """Why entries ``first..last`` (both included; default: the selected range) cannot be
@@ -272,7 +277,7 @@ class ProgramState:
         stop = min(last, self.empty_index - 1)  # the last real statement deleted
         if strict:
             return strict_delete(self, first, stop)
-        return self._free(self.statements[:first] + self.statements[stop + 1 :], first)
+        return self._free(self._splice(first, stop + 1, ()), first)
 
     def check_modify(self, statement: object, *, strict: bool = False) -> Refusal | None:
         """Why the selected statement cannot be replaced by ``statement``, or ``None`` if it can."""
@@ -290,7 +295,7 @@ class ProgramState:
                 f"task call), not {describe(statement)}",
                 index,
             )
-        return self._free((*self.statements[:index], statement, *self.statements[index + 1 :]), index)
+        return self._free(self._splice(index, index + 1, (statement,)), index)
 
     def check_move(self, by: int, *, strict: bool = False) -> Refusal | None:
         """Why the selected range (its real statements) cannot move ``by`` places (negative: up),
@@ -309,7 +314,7 @@ class ProgramState:
             )
         if strict:
             return strict_move(self, first, stop)
-        return self._free(self._moved(first, stop, by), first)
+        return self._free((self._moved(first, stop, by), EditMap.move(self._marks, first, stop, by)), first)
 
     def check_submit(self, start: int, stop: int) -> Refusal | None:
         """Why ``statements[start:stop]`` cannot be submitted, or ``None`` if it can."""
@@ -339,10 +344,8 @@ class ProgramState:
         if (refusal := self.check_insert(statement, strict=strict)) is not None:
             return refusal
         index = self.selected_index
-        return self._with(
-            statements=(*self.statements[:index], statement, *self.statements[index:]),
-            selected=index + 1,
-        )
+        statements, edit = self._splice(index, index, (statement,))
+        return self._with(statements=statements, marks=edit.after_marks, selected=index + 1)
 
     def delete(self, first: int | None = None, last: int | None = None, *, strict: bool = False) -> ProgramState | Refusal:
         """Delete entries ``first..last`` (default: the selected range; the trailing empty
@@ -354,14 +357,16 @@ class ProgramState:
         if (refusal := self.check_delete(first, last, strict=strict)) is not None:
             return refusal
         stop = min(last, self.empty_index - 1) + 1
-        return self._with(statements=self.statements[:first] + self.statements[stop:], selected=first)
+        statements, edit = self._splice(first, stop, ())
+        return self._with(statements=statements, marks=edit.after_marks, selected=first)
 
     def modify(self, statement: Statement, *, strict: bool = False) -> ProgramState | Refusal:
         """Replace the selected statement by ``statement`` (strict: of the same kind); the selection is kept."""
         if (refusal := self.check_modify(statement, strict=strict)) is not None:
             return refusal
         index = self.selected_index
-        return self._with(statements=(*self.statements[:index], statement, *self.statements[index + 1 :]))
+        statements, edit = self._splice(index, index + 1, (statement,))
+        return self._with(statements=statements, marks=edit.after_marks)
 
     def move(self, by: int, *, strict: bool = False) -> ProgramState | Refusal:
         """Move the selected range's statements ``by`` places (negative: up); the selection moves with them."""
@@ -371,7 +376,8 @@ class ProgramState:
         stop = min(last, self.empty_index - 1)
         cursor = min(self.selected_index, stop) + by
         anchor = None if self.anchor is None else min(self.anchor, stop) + by
-        return self._with(statements=self._moved(first, stop, by), selected=cursor, anchor=anchor)
+        return self._with(statements=self._moved(first, stop, by), marks=kinds.moved(self._marks, first, stop, by),
+                          selected=cursor, anchor=anchor)
 
     def modify_conditions(
         self, speed: Speed | None | _Keep = KEEP, until: Until | None | _Keep = KEEP, *, strict: bool = False
@@ -407,7 +413,7 @@ class ProgramState:
         if (refusal := self.check_submit(start, stop)) is not None:
             return refusal
         rest = self.statements[stop:]
-        left = self._with(statements=rest, selected=max(self.selected_index - stop, 0))
+        left = self._with(statements=rest, marks=self._marks[stop:], selected=max(self.selected_index - stop, 0))
         return Submission(self.statements[start:stop], left)
 
     def submit_through(self, last: int) -> Submission | Refusal:
@@ -442,9 +448,21 @@ class ProgramState:
             f"cannot {what} while statements {start + 1}..{stop} are being previewed; only selection is allowed",
         )
 
-    def _free(self, statements: tuple[Statement, ...], where: int) -> Refusal | None:
-        """Free mode: why the edited program ``statements`` cannot run where this one could."""
-        return free_edit_refusal(self.statements, statements, where)
+    def _free(self, edited: tuple[tuple[Statement, ...], EditMap], where: int) -> Refusal | None:
+        """Free mode: why the edited program (its statements and how the edit made them) cannot
+        run where this one could."""
+        statements, edit = edited
+        return free_edit_refusal(self.statements, statements, where, edit)
+
+    @property
+    def _marks(self) -> np.ndarray:
+        assert self.marks is not None  # set in __post_init__
+        return self.marks
+
+    def _splice(self, first: int, stop: int, inserted: tuple[Statement, ...]) -> tuple[tuple[Statement, ...], EditMap]:
+        """The statements with ``statements[first:stop]`` replaced by ``inserted``, and the edit's map."""
+        edit = EditMap.splice(self._marks, kinds.marks_of(inserted), first, stop)
+        return (*self.statements[:first], *inserted, *self.statements[stop:]), edit
 
     def _moved(self, first: int, stop: int, by: int) -> tuple[Statement, ...]:
         """The statements with ``first..stop`` (both included) moved ``by`` places."""
@@ -471,9 +489,12 @@ class ProgramState:
     def _with(self, **changes: object) -> ProgramState:
         """A copy with ``changes``; a change of the statements or of the cursor drops the range
         unless the change names its anchor."""
-        values = {"statements": self.statements, "selected": self.selected, "preview": self.preview, "anchor": self.anchor}
+        values = {"statements": self.statements, "selected": self.selected, "preview": self.preview, "anchor": self.anchor,
+                  "marks": self.marks}
         if ("statements" in changes or "selected" in changes) and "anchor" not in changes:
             values["anchor"] = None
+        if "statements" in changes and "marks" not in changes:
+            values["marks"] = None  # read from the new statements
         values.update(changes)
         return ProgramState(**values)  # type: ignore[arg-type]
 
