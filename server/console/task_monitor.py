@@ -60,7 +60,7 @@ from shared.language.parser import parse_program
 from shared.tasknet.cenet import ConditionEventModel, ConditionModel, EventModel
 from shared.tasknet.contacts import CellState, ContactModel
 from shared.tasknet.coordinator import TaskCoordinator, generate_task_net
-from shared.tasknet.playback import ProgramRecognition, recognise_program
+from shared.tasknet.playback import PrefixRecognition, ProgramRecognition
 from shared.tasknet.taskspace import TaskSpace, load_task_space, task_file_for_cell
 
 log = logging.getLogger(__name__)
@@ -119,6 +119,7 @@ class TaskMonitor:
         self._lock = threading.Lock()
         self._play_lock = threading.Lock()  # a previewed range's play, outside ``_lock``
         self._played: _PreviewPlay | None = None  # the newest play (``_preview`` while previewing)
+        self._recognition = _KeptRecognition(ctx.cell)  # per statement, from the newest start
         # the plays (seconds for a long range) run here, never on the thread that previewed or submitted
         self._plays = Delivery(name="task-plays")
         self._queued = 0
@@ -358,11 +359,14 @@ class TaskMonitor:
         world.take_reported(poses, held, self._frames.world_T_tcp(cell.robot, np.asarray(start_q)))
         statements = list(statements)
         try:
-            with self._work(f"recognising the task in the {len(statements)} statement(s) previewed") as step:
-                return recognise_program(statements, cell, self.space, np.asarray(start_q), world, progress=step)
+            return self._recognise(statements, start_q, world, f"recognising the task in the {len(statements)} statement(s) previewed")
         except Exception as exc:  # the preview itself reports planning problems; the panel just goes without
             log.warning("could not play the previewed range for the task panel: %s", exc)
             return None
+
+    def _recognise(self, statements, start_q, world: ObjectWorld, what: str) -> ProgramRecognition:
+        with self._work(what) as step:
+            return self._recognition.recognise(self.space, statements, start_q, world, step)
 
     @contextlib.contextmanager
     def _work(self, what: str) -> Iterator[Callable[[int, int], None]]:
@@ -395,9 +399,8 @@ class TaskMonitor:
         if r is not None:
             world.take_reported({k: np.asarray(v) for k, v in r.object_poses.items()}, r.held, np.asarray(r.world_T_tcp))
         try:
-            with self._work(f"recognising the task in the {len(parsed.statements)} statement(s) sent") as step:
-                result = recognise_program(parsed.statements, self._ctx.cell, self.space, np.asarray(event.start_q), world,
-                                           progress=step)
+            result = self._recognise(parsed.statements, event.start_q, world,
+                                     f"recognising the task in the {len(parsed.statements)} statement(s) sent")
         except Exception as exc:
             log.warning("could not play the submitted range for task monitoring: %s", exc)
             return {}
@@ -502,6 +505,36 @@ class TaskMonitor:
             deviations=list(self._deviations),
             version=self._version,
         )
+
+
+class _KeptRecognition:
+    """The recognition of the newest start, kept per statement: a program changed near its end (a
+    statement generated, a range previewed again after an edit) plays from its first changed
+    statement (``shared.tasknet.playback.PrefixRecognition``); a new start plays from the beginning."""
+
+    def __init__(self, cell) -> None:
+        self._cell = cell
+        self._kept: tuple[tuple, PrefixRecognition] | None = None
+        self._lock = threading.Lock()
+
+    def recognise(self, space: TaskSpace, statements, start_q, world: ObjectWorld,
+                  progress: Callable[[int, int], None]) -> ProgramRecognition:
+        """``statements`` played from ``start_q`` with ``world``'s objects, recognised."""
+        q = np.asarray(start_q, dtype=float)
+        key = (q.tobytes(), _world_key(world))
+        with self._lock:
+            if self._kept is None or self._kept[0] != key:
+                self._kept = (key, PrefixRecognition(self._cell, space, q, world))
+            return self._kept[1].recognise(statements, progress=progress)
+
+
+def _world_key(world: ObjectWorld) -> tuple:
+    """What of ``world`` a play depends on, as bytes: where the objects are and what is held how."""
+    def raw(a) -> bytes:
+        return b"" if a is None else np.asarray(a).tobytes()
+
+    placed = tuple(sorted((k, raw(v)) for k, v in world.placed.items()))
+    return placed, world.held, raw(world.tcp_T_held), raw(world.world_T_tcp_inserted)
 
 
 def _space_model(space: TaskSpace, m0: frozenset[str] | set[str]) -> ConditionEventModel:

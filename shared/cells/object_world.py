@@ -169,6 +169,15 @@ class ObjectWorld:
             self.held, self.tcp_T_held = held, invert(world_T_tcp) @ poses[held]
             self.placed.pop(held, None)
 
+    def copy(self) -> ObjectWorld:
+        """A world of its own with the same placed objects, held object and grip."""
+        out = ObjectWorld(self.cell)
+        out.placed = {k: v.copy() for k, v in self.placed.items()}
+        out.held = self.held
+        out.tcp_T_held = None if self.tcp_T_held is None else self.tcp_T_held.copy()
+        out.world_T_tcp_inserted = None if self.world_T_tcp_inserted is None else self.world_T_tcp_inserted.copy()
+        return out
+
     def take(self, other: ObjectWorld, world_T_tcp_self: np.ndarray) -> None:
         """Become ``other`` (a re-sync): its placed objects, its held object and grip. What this
         side held and the other does not stays where this side's tool holds it now."""

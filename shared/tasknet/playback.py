@@ -20,6 +20,7 @@ from shared.cells.object_world import ObjectWorld
 from shared.language.statements import Statement, TaskCall
 from shared.motion import plan_program
 from shared.motion.interpreter import Plan
+from shared.motion.prefix_planner import PrefixPlanner
 from shared.motion.frames import CellFrames
 from shared.motion.segment import SegmentKind
 from shared.tasknet.contacts import CellState, ContactModel
@@ -50,26 +51,32 @@ def play(plan: Plan, cell, world: ObjectWorld, dt: float = SAMPLE_DT_S) -> Itera
     statement's end: ``(q, t, statement number)``. A task call that moves the arm is sampled in
     ``TASK_STEPS`` steps; its effect on ``world`` (a grasp holds, an insertion seats) is applied
     just before its last sample, so ``world`` read at each sample is the cell at that moment."""
-    robot = cell.robot
     frames = CellFrames.from_cell(cell)
-    for seg, t0 in zip(plan.segments, plan.start_times):
-        number = seg.index + 1
-        if seg.kind is SegmentKind.TASK:
-            if not np.allclose(seg.q_start, seg.q_end):
-                for s in np.linspace(0.0, 1.0, TASK_STEPS):
-                    yield seg.q_start + s * (seg.q_end - seg.q_start), float(t0), number
-            st = seg.statement
-            assert isinstance(st, TaskCall)
-            world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(robot, seg.q_end))
-            yield seg.q_end, float(t0), number
-            continue
-        if seg.duration <= 0.0:
-            continue
-        ts = np.append(np.arange(t0, t0 + seg.duration, dt), t0 + seg.duration)
-        qs = plan.sample(ts).q
-        qs[-1] = seg.q_end  # the plan's clock gives the end instant to the tasks after it (no time of their own)
-        for t, q in zip(ts, qs):
-            yield q, float(t), number
+    for k in range(len(plan.segments)):
+        yield from play_segment(plan, k, cell, frames, world, dt)
+
+
+def play_segment(plan: Plan, k: int, cell, frames: CellFrames, world: ObjectWorld,
+                 dt: float = SAMPLE_DT_S) -> Iterator[tuple[np.ndarray, float, int]]:
+    """:func:`play` of the plan's segment ``k`` alone (``world``: the cell before it)."""
+    seg, t0 = plan.segments[k], plan.start_times[k]
+    number = seg.index + 1
+    if seg.kind is SegmentKind.TASK:
+        if not np.allclose(seg.q_start, seg.q_end):
+            for s in np.linspace(0.0, 1.0, TASK_STEPS):
+                yield seg.q_start + s * (seg.q_end - seg.q_start), float(t0), number
+        st = seg.statement
+        assert isinstance(st, TaskCall)
+        world.apply_task(st.name, tuple(st.args), frames.world_T_tcp(cell.robot, seg.q_end))
+        yield seg.q_end, float(t0), number
+        return
+    if seg.duration <= 0.0:
+        return
+    ts = np.append(np.arange(t0, t0 + seg.duration, dt), t0 + seg.duration)
+    qs = plan.sample(ts).q
+    qs[-1] = seg.q_end  # the plan's clock gives the end instant to the tasks after it (no time of their own)
+    for t, q in zip(ts, qs):
+        yield q, float(t), number
 
 
 def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, start_q: np.ndarray | None = None,
@@ -92,9 +99,88 @@ def recognise_program(program: Sequence[Statement], cell, space: TaskSpace, star
             current = number
             progress(max(0, (number or 1) - 1), len(program))
         coordinator.observe(CellState.of_world(world, frames.world_T_tcp(robot, q)), t, number)
+    return _recognition(space, coordinator, plan, samples)
+
+
+def _recognition(space: TaskSpace, coordinator: TaskCoordinator, plan: Plan, samples: int) -> ProgramRecognition:
     actions = tuple(coordinator.actions)
     net = generate_task_net(space, coordinator.m0, [a.action for a in actions])
     return ProgramRecognition(
         actions, tuple(coordinator.ordered(coordinator.m0)), tuple(coordinator.ordered(coordinator.marking)), net,
         samples, None if plan.refusal is None else str(plan.refusal), tuple(float(t) for t in plan.start_times),
     )
+
+
+@dataclass(frozen=True)
+class _After:
+    """The play's state after one statement: the objects, the marking, how many actions and samples."""
+
+    world: ObjectWorld
+    marking: frozenset[str]
+    actions: int
+    samples: int
+    truth: dict[str, bool]
+
+
+class PrefixRecognition:
+    """:func:`recognise_program` for successive versions of a program from one start, playing
+    each version from its first statement that changed (as ``PrefixPlanner`` plans it).
+
+    Recognition is sequential: what a statement's samples recognise depends only on the objects,
+    the marking and the clock before it. So the play keeps that state after every statement and a
+    new version restores it at the first statement that differs: a statement added at the end is
+    played alone, and a preview of a range whose prefix was played is not played again. The
+    result is :func:`recognise_program`'s (``tests/tasknet/test_prefix_recognition.py``)."""
+
+    def __init__(self, cell, space: TaskSpace, start_q: np.ndarray, world: ObjectWorld | None = None) -> None:
+        """``world``: the objects at the start (copied; default: the cell as loaded)."""
+        self._cell, self._space = cell, space
+        self._frames = CellFrames.from_cell(cell)
+        self._planner = PrefixPlanner(cell.robot, cell, np.asarray(start_q, dtype=float))
+        self._world = (ObjectWorld(cell) if world is None else world).copy()
+        q0 = np.asarray(start_q, dtype=float)
+        self._coordinator = TaskCoordinator(space, ContactModel(space, cell),
+                                            CellState.of_world(self._world, self._frames.world_T_tcp(cell.robot, q0)))
+        self._played: list[Statement] = []  # the statements played, one state kept after each
+        self._after: list[_After] = [self._snapshot(0)]
+        self.replayed = 0
+        """Statements played by the last :meth:`recognise` (the rest was kept)."""
+
+    def _snapshot(self, samples: int) -> _After:
+        c = self._coordinator
+        return _After(self._world.copy(), c.marking, len(c.actions), samples, dict(c._last_truth))  # noqa: SLF001
+
+    def _restore(self, after: _After) -> None:
+        c = self._coordinator
+        self._world = after.world.copy()
+        c.marking = after.marking
+        del c.actions[after.actions:]
+        c._last_truth = dict(after.truth)  # noqa: SLF001 - the coordinator's state, put back as it was
+
+    def recognise(self, program: Sequence[Statement],
+                  progress: Callable[[int, int], None] | None = None) -> ProgramRecognition:
+        """The recognition of ``program`` from this start; ``progress`` as :func:`recognise_program`'s."""
+        program = list(program)
+        plan = self._planner.plan(program)
+        segments = plan.segments
+        keep = 0
+        for old, new in zip(self._played, segments):
+            if old is not new.statement and old != new.statement:
+                break
+            keep += 1
+        keep = min(keep, len(self._after) - 1)
+        del self._played[keep:]
+        del self._after[keep + 1:]
+        self._restore(self._after[keep])
+        samples = self._after[keep].samples
+        robot = self._cell.robot
+        for k in range(keep, len(segments)):
+            if progress is not None:
+                progress(k, len(program))
+            for q, t, number in play_segment(plan, k, self._cell, self._frames, self._world):
+                samples += 1
+                self._coordinator.observe(CellState.of_world(self._world, self._frames.world_T_tcp(robot, q)), t, number)
+            self._played.append(segments[k].statement)
+            self._after.append(self._snapshot(samples))
+        self.replayed = len(segments) - keep
+        return _recognition(self._space, self._coordinator, plan, samples)

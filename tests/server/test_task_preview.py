@@ -98,3 +98,22 @@ def test_a_preview_and_a_submit_never_wait_for_the_task_panels_play(session: Ses
     assert session.task.settled()
     session.preview.seek(view.duration)
     assert actions(session) == ALL
+
+
+def test_a_range_previewed_again_after_an_edit_at_its_end_plays_only_what_changed(session: Session) -> None:
+    """Recognition is kept per statement (issue 35): previewing the program again after a
+    statement is added at its end plays that statement alone, and shows what a whole play shows."""
+    session.program.load(PROGRAM, "peg_transfer.tp")
+    n = session.program.view().empty_index
+    session.preview.begin(0, n)
+    assert session.task.settled()
+    session.preview.end()
+    session.program.insert("SPEED 20 %")  # at the end: the selection is the empty statement
+    session.preview.begin(0, n + 1)
+    view = session.preview.view()
+    session.preview.seek(view.duration)
+    assert session.task.settled()
+    kept = session.task._recognition._kept[1]  # noqa: SLF001 - what the last play had to play
+    assert kept.replayed == 1
+    assert actions(session) == ALL
+    session.preview.end()
