@@ -165,3 +165,107 @@ def test_publications_from_gated_frames_show_the_newest_frame(session, clock) ->
     # the same publications as every frame taken: the first, then each due one, from that frame
     assert [round(v.q[0] * 1000) for v in published] == expected and len(expected) >= 4
     assert all(v.state == "idle" for v in published)
+
+
+# -- the telemetry socket's own frame split ------------------------------------------------------
+
+
+class _Transport:
+    """What the connection writes (a pong, a close) and nothing else of a socket."""
+
+    def __init__(self) -> None:
+        self.written = bytearray()
+        self.closed = False
+
+    def write(self, data: bytes) -> None:
+        self.written += data
+
+    def is_closing(self) -> bool:
+        return self.closed
+
+    def close(self) -> None:
+        self.closed = True
+
+    abort = close
+
+    def get_extra_info(self, name, default=None):
+        return default
+
+    def set_write_buffer_limits(self, high=None, low=None) -> None:
+        pass
+
+    def get_write_buffer_size(self) -> int:
+        return 0
+
+    def pause_reading(self) -> None:
+        pass
+
+    def resume_reading(self) -> None:
+        pass
+
+
+def _split_run(stream_of, cuts: list[int], max_size: int = 1 << 16) -> tuple[list[bytes], _Transport, object]:
+    """Feed a telemetry connection the handshake's response and ``stream_of(response)`` cut at
+    ``cuts``; the messages it handed on, its transport and the connection."""
+    from websockets.client import ClientProtocol
+    from websockets.uri import parse_uri
+    from websockets.utils import accept_key
+
+    from server.robot_telemetry import _TelemetryConnection
+
+    async def run():
+        protocol = ClientProtocol(parse_uri("ws://127.0.0.1:1/telemetry"), max_size=max_size)
+        got: list[bytes] = []
+        conn = _TelemetryConnection(protocol, on_message=got.append, ping_interval=None)
+        transport = _Transport()
+        conn.connection_made(transport)
+        request = protocol.connect()
+        protocol.send_request(request)
+        response = (b"HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                    b"Sec-WebSocket-Accept: " + accept_key(request.headers["Sec-WebSocket-Key"]).encode() + b"\r\n\r\n")
+        stream = response + stream_of()
+        edges = sorted({0, len(stream), *(c % (len(stream) + 1) for c in cuts)})
+        for a, b in zip(edges, edges[1:]):
+            conn.data_received(stream[a:b])
+        return got, transport, conn
+
+    return asyncio.run(run())
+
+
+def _wire(opcode, payload: bytes, fin: bool = True) -> bytes:
+    from websockets.frames import Frame
+    return Frame(opcode, payload, fin=fin).serialize(mask=False)
+
+
+@pytest.mark.parametrize("cuts", [[], [1], [130, 131, 132], [7, 19, 250, 251, 600, 2000], list(range(0, 3000, 37))])
+def test_frames_split_by_the_connection_are_the_messages_sent_however_the_bytes_arrive(cuts) -> None:
+    """Binary messages in every length encoding, a ping between them (answered), arriving with
+    the handshake's response, one byte at a time or many frames in one read: each message is
+    handed on once, whole, in order, as the protocol's own parser hands them."""
+    from websockets.frames import Opcode
+
+    messages = [encode_frame(_frame(n)) for n in range(1, 5)] + [bytes(range(256)) * 2, b"x" * 70_000, b""]
+    stream = lambda: (_wire(Opcode.BINARY, messages[0]) + _wire(Opcode.PING, b"still there?")  # noqa: E731
+                      + b"".join(_wire(Opcode.BINARY, m) for m in messages[1:]))
+    got, transport, conn = _split_run(stream, cuts, max_size=1 << 20)
+    assert [bytes(m) for m in got] == messages
+    sent = bytes(transport.written).split(b"\r\n\r\n", 1)[1]  # after the handshake's request
+    assert sent[:2] == b"\x8a\x8c"  # the ping was answered by the protocol: a pong of its 12 bytes (masked)
+    assert conn._fast and conn._pending == b""  # noqa: SLF001 - still splitting, nothing left over
+
+
+def test_a_frame_the_split_does_not_take_goes_to_the_protocol_and_it_reads_on() -> None:
+    """A text message, a fragmented binary message and a frame over the size limit: the protocol
+    gets each whole and from then on reads the socket itself, as it always did."""
+    from websockets.frames import Opcode
+
+    first, later = encode_frame(_frame(1)), encode_frame(_frame(2))
+    stream = lambda: (_wire(Opcode.BINARY, first) + _wire(Opcode.TEXT, b"not telemetry")  # noqa: E731
+                      + _wire(Opcode.BINARY, later[:40], fin=False) + _wire(Opcode.CONT, later[40:]))
+    got, _, conn = _split_run(stream, [3, 200])
+    assert [bytes(m) for m in got] == [first, later] and not conn._fast  # noqa: SLF001
+    too_big = lambda: _wire(Opcode.BINARY, first) + _wire(Opcode.BINARY, b"y" * 5000)  # noqa: E731
+    got, transport, conn = _split_run(too_big, [], max_size=4096)
+    assert [bytes(m) for m in got] == [first]  # the long one is refused, never handed on in part
+    sent = bytes(transport.written).split(b"\r\n\r\n", 1)[1]
+    assert sent[:1] == b"\x88" and not conn._fast  # noqa: SLF001 - the protocol closes: the message is too big
