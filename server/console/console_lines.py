@@ -40,9 +40,9 @@ class ConsoleLines:
         self._console_lines: list[ConsoleLine] = []  # added by the console, not sent yet
         self._declined: list[ConsoleLine] = []  # console lines the operator took out
 
-    def _added_fields(self, statement: Statement) -> dict:
-        line = next((c for c in self._console_lines if c.statement is statement), None)
-        return {} if line is None else {"added_by": "console", "added_reason": line.reason}
+    def _added_marks(self) -> dict[int, dict]:
+        """The view fields of the lines the console added, by ``id`` of their statement."""
+        return {id(c.statement): {"added_by": "console", "added_reason": c.reason} for c in self._console_lines}
 
     def _note_removed(self) -> None:
         """Console lines no longer in the program were taken out by the operator (sent ones are

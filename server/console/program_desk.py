@@ -57,10 +57,11 @@ from server.console.views import (
 from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program
 from shared.language.parser import parse_statement
-from shared.language.statements import Frame, Speed, Statement, Until, is_task, program_to_json
+from shared.language.statements import Frame, Speed, Statement, Until, program_to_json
 from shared.motion.prefix_planner import PrefixPlanner
 from shared.motion.task_effects import TaskObjects
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
+from shared.program.marks import task_indices
 from shared.program.generator import Generated, JogMode, ProgramGenerator, RobotSample
 
 if TYPE_CHECKING:
@@ -126,7 +127,7 @@ class ProgramDesk(ConsoleLines):
         with self._ctx.lock:
             st = self._editor.state
             durations = self.durations()
-            entries = self._entries.views(st.statements, durations, self._added_fields)
+            entries = self._entries.views(st.statements, durations, self._added_marks())
             entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
             e = self._editor
             return ProgramView(
@@ -149,14 +150,16 @@ class ProgramDesk(ConsoleLines):
                 return self._durations[1]
             durations: list[float | None] = [None] * len(statements)
             if statements and not start.unknown:
+                planner = self.prefix_planner(start.q)
                 try:
-                    plan = self.prefix_planner(start.q).plan(statements)
+                    planner.plan(statements)
                 except TeleprogError as exc:
                     self._planner = None
                     log.info("no durations: the program cannot be planned (%s)", exc)
-                else:
-                    for i, segment in enumerate(plan.segments):
-                        durations[i] = None if is_task(statements[i]) else float(segment.duration)
+                else:  # kept per statement by the planner; only the robot knows how long a task takes
+                    durations = (planner.durations() + durations)[:len(statements)]
+                    for i in task_indices(self._editor.state.marks):
+                        durations[i] = None
             self._durations = (key, durations)
             return durations
 
@@ -326,8 +329,7 @@ class ProgramDesk(ConsoleLines):
             raise ConflictError(f"cannot {what} while statements {busy[0] + 1}..{busy[1]} are being previewed; only selection is allowed")
 
     def _path_not_clear_with(self, editor: Editor, start: int, stop: int) -> dict[int, str]:
-        """The previewer's path check of ``editor``'s program (under the lock): it checks the
-        desk's program, so the desk holds ``editor`` for the check and its own one after."""
+        """The previewer's path check (of the desk's program) run on ``editor``'s (under the lock)."""
         kept, self._editor = self._editor, editor
         try:
             return self.preview.path_not_clear(start, stop)

@@ -389,10 +389,11 @@ class Plan:
 
     @classmethod
     def of(cls, segments: Sequence[Segment], q_start: np.ndarray, end: InterpreterState,
-           refusal: PlanRefused | None) -> "Plan":
+           refusal: PlanRefused | None, durations: Sequence[float] | None = None) -> "Plan":
         """The plan of ``segments``, planned in order from ``q_start`` to the interpreter state
-        ``end``, stopped by ``refusal`` (None: every statement planned)."""
-        durations = np.array([s.duration for s in segments])
+        ``end``, stopped by ``refusal`` (None: every statement planned). ``durations``: the
+        segments' durations when the caller keeps them (``PrefixPlanner``)."""
+        durations = np.array([s.duration for s in segments] if durations is None else durations, dtype=float)
         starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]]) if len(segments) else np.zeros(0)
         return cls(tuple(segments), q_start, end.q.copy(), refusal, starts, end.after_task)
 

@@ -13,7 +13,7 @@ from shared.errors import JointLimitError
 from shared.language.parser import parse_file
 from shared.language.statements import Draw, Drive, Event, Move, SetSpeed, Speed, TaskCall
 from shared.motion import plan_program
-from shared.motion.prefix_planner import PrefixPlanner
+from shared.motion.prefix_planner import PrefixPlanner, common_prefix
 from shared.paths import ASSETS_DIR
 
 QA = (math.radians(20.0), math.radians(-60.0), math.radians(170.0), math.radians(10.0), math.radians(30.0), math.radians(5.0))
@@ -75,7 +75,19 @@ def test_random_edits_plan_as_from_the_start(cell) -> None:
         theirs = plan_program(program, cell.robot, cell, start_q=cell.q_home)
         kinds["refused"] += theirs.refusal is not None
         assert_same_plan(planner.plan(program), theirs)
+        assert planner.durations() == [float(seg.duration) for seg in theirs.segments]
     assert all(v > 10 for v in kinds.values()), kinds  # every kind of change was tried
+
+
+def test_the_common_prefix_is_found_by_slices_as_a_walk_finds_it() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        a = list(rng.integers(0, 3, int(rng.integers(0, 12))))
+        b = list(rng.integers(0, 3, int(rng.integers(0, 12))))
+        if rng.random() < 0.5:
+            b = a[: int(rng.integers(0, len(a) + 1))] + b
+        walked = next((i for i, (x, y) in enumerate(zip(a, b)) if x != y), min(len(a), len(b)))
+        assert common_prefix(a, b) == common_prefix(tuple(a), tuple(b)) == walked
 
 
 def test_a_growing_program_plans_only_its_new_statements(cell, monkeypatch) -> None:
