@@ -180,8 +180,7 @@ class Dispatch(AccountBooks):
                 self._regime_rules(statements, start, stop)
                 self._mode_line(statements, start, stop)  # raises ConsoleLineAdded after adding one
                 start_state = self._desk.start
-                plan = None if start_state.unknown else plan_or_refuse(statements, self._ctx.robot, self._ctx.cell, start_state.q,
-                                                                        self._arm.task_objects())
+                plan = None if start_state.unknown else self._desk.planned(stop)  # the program's own plan, kept
                 result = editor.submit(start, stop)
                 if isinstance(result, Refusal):
                     raise RefusedByRule(result)
@@ -203,7 +202,7 @@ class Dispatch(AccountBooks):
         view = self.view()
         self._ctx.bus.emit([submitted, SentChanged(sent=view), ProgramChanged(program=self._desk.view()), *arm_events])
         self._arm.follow_start()  # an emptied program: the arm stands where what was sent ends
-        self.remote.refresh_predicted()
+        self._ctx.after.post(self.remote.refresh_predicted)  # planned from the robot's arm: not the caller's wait
         return view
 
     @property

@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from server.console.console_lines import ConsoleLines
+from server.console.program_plans import ProgramPlans, grip_key
 from server.console.context import ConsoleContext
 from server.console.edit_check import rest_breaks
 from server.console.enums import Regime
@@ -58,10 +59,7 @@ from shared.errors import InputError, TeleprogError
 from shared.language.formatter import format_program
 from shared.language.parser import parse_statement
 from shared.language.statements import Frame, Speed, Statement, Until, program_to_json
-from shared.motion.prefix_planner import PrefixPlanner
-from shared.motion.task_effects import TaskObjects
 from shared.program.editor import KEEP, Editor, ProgramState, Refusal
-from shared.program.marks import task_indices
 from shared.program.generator import Generated, JogMode, ProgramGenerator, RobotSample
 
 if TYPE_CHECKING:
@@ -81,16 +79,7 @@ def _copy_editor(editor: Editor) -> Editor:
     return trial
 
 
-def _grip_key(objects: TaskObjects | None) -> bytes:
-    """What of ``objects`` a plan's tasks depend on, as bytes for the planner cache's key."""
-    if objects is None:
-        return b""
-    grip = objects.grip
-    placed = b"".join(name.encode() + np.asarray(pose).tobytes() for name, pose in sorted(objects.poses.items()))
-    return placed + (b"" if grip is None else grip.name.encode() + np.asarray(grip.tcp_T_object).tobytes())
-
-
-class ProgramDesk(ConsoleLines):
+class ProgramDesk(ConsoleLines, ProgramPlans):
     """Editor, generator, files and the program's start."""
 
     def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes) -> None:
@@ -98,8 +87,6 @@ class ProgramDesk(ConsoleLines):
         self._control, self._modes = control, modes
         self.preview: PreviewRun | None = None  # set by the session
         self.dispatch: Submitter | None = None  # set by the session
-        self.objects_at_start: Callable[[], TaskObjects] | None = None
-        """The objects and the grip where the program starts (set by the session: the virtual cell's)."""
         self._editor = Editor(strict=ctx.settings.strict_editing)
         self._auto = bool(ctx.settings.auto_generate)
         cell = ctx.cell
@@ -113,8 +100,7 @@ class ProgramDesk(ConsoleLines):
         self._confirmed: tuple[int, int, tuple] | None = None
         ConsoleLines.__init__(self)
         self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
-        self._durations: tuple[tuple, list[float | None]] | None = None  # (key, durations)
-        self._planner: tuple[bytes, PrefixPlanner] | None = None  # (start joints, its planner)
+        ProgramPlans.__init__(self)
         self._entries = EntryViews()
 
     # -- reading -----------------------------------------------------------------------------
@@ -137,40 +123,6 @@ class ProgramDesk(ConsoleLines):
                 auto_generate=self._auto, start_q=self.start.q.tolist(), start_source=self.start.source,
                 confirmed=self.confirmed_range(), strict_editing=e.strict,
             )
-
-    def durations(self) -> list[float | None]:
-        """Each real statement's planned duration (s) from the program's start; ``None`` where
-        it is not known: a task (only the robot knows how long), a statement at or after a
-        planning refusal, or every statement when the start is unknown. Planned once per change."""
-        with self._ctx.lock:
-            statements = tuple(self._editor.state.statements)
-            start = self.start
-            key = (statements, start.q.tobytes(), start.unknown)
-            if self._durations is not None and self._durations[0] == key:
-                return self._durations[1]
-            durations: list[float | None] = [None] * len(statements)
-            if statements and not start.unknown:
-                planner = self.prefix_planner(start.q)
-                try:
-                    planner.plan(statements)
-                except TeleprogError as exc:
-                    self._planner = None
-                    log.info("no durations: the program cannot be planned (%s)", exc)
-                else:  # kept per statement by the planner; only the robot knows how long a task takes
-                    durations = (planner.durations() + durations)[:len(statements)]
-                    for i in task_indices(self._editor.state.marks):
-                        durations[i] = None
-            self._durations = (key, durations)
-            return durations
-
-    def prefix_planner(self, q_start: np.ndarray) -> PrefixPlanner:
-        """The planner of durations from ``q_start``: it re-plans a changed program only from its
-        first changed statement (a generated statement added while driving: one statement)."""
-        objects = self.objects_at_start() if self.objects_at_start is not None else None
-        key = q_start.tobytes() + _grip_key(objects)
-        if self._planner is None or self._planner[0] != key:
-            self._planner = (key, PrefixPlanner(self._ctx.robot, self._ctx.cell, q_start, objects))
-        return self._planner[1]
 
     def confirmed_range(self) -> tuple[int, int] | None:
         """The range previewed to its end without warnings, while its statements are unchanged."""
@@ -300,7 +252,7 @@ class ProgramDesk(ConsoleLines):
                 now = self.start
                 if read.planner is not None and np.array_equal(now.q, start.q) and not now.unknown:  # start unmoved
                     # keyed as prefix_planner keys it, so the next change re-plans from where it changed
-                    self._planner = (start.q.tobytes() + _grip_key(objects), read.planner)
+                    self._planner = (start.q.tobytes() + grip_key(objects), read.planner)
                     self._durations = ((tuple(self._editor.state.statements), start.q.tobytes(), False), read.durations)
                 view = self.view()
         n = len(read.state.statements)

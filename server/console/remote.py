@@ -80,6 +80,7 @@ class RemoteMirror:
         self.objects = ObjectWorld(ctx.cell)
         s = ctx.settings
         self._predicted = PredictedPathView()
+        self._predicted_seq = 0  # bumped by every refresh of the predicted path
         self._divergence = DivergenceView(threshold_joint=s.divergence_joint, threshold_tool=s.divergence_tool)
 
     def _world_T_tcp(self, q: np.ndarray) -> np.ndarray:
@@ -190,27 +191,35 @@ class RemoteMirror:
 
     # -- derived -------------------------------------------------------------------------------
     def refresh_predicted(self) -> None:
-        """Plan the submitted-not-done statements from the remote arm (or the last known start)."""
+        """Plan the submitted-not-done statements from the remote arm (or the last known start).
+        The planning (a second at thousands of statements) runs outside the session's lock; a
+        refresh that a newer one overtook is dropped."""
         ctx = self._ctx
         with ctx.lock:
             pending = self._dispatch.pending()
             numbers = [s.number for s in pending if s.number is not None]
-            if not pending:
-                view = PredictedPathView()
-            else:
+            self._predicted_seq += 1
+            seq = self._predicted_seq
+            if pending:
                 frame = self.telemetry
-                start = np.array(frame.q, dtype=float) if frame is not None else self._desk.start.q
-                try:
-                    held = self.objects  # the robot's grip: an insertion's seat follows from it
-                    objects = TaskObjects.of_world(ctx.cell, held.placed, held.held, held.tcp_T_held)
-                    plan = plan_or_refuse([s.statement for s in pending], ctx.robot, ctx.cell, start, objects)
-                except TeleprogError:
-                    plan = None
-                if plan is None or plan.duration <= 0:
-                    view = PredictedPathView(numbers=numbers)
-                else:
-                    points = tool_path(plan, ctx.robot, ctx.frames, ctx.settings.predicted_points)
-                    view = PredictedPathView(points=points.tolist(), numbers=numbers, end_q=plan.q_final.tolist())
+                start = np.array(frame.q, dtype=float) if frame is not None else self._desk.start.q.copy()
+                held = self.objects  # the robot's grip: an insertion's seat follows from it
+                objects = TaskObjects.of_world(ctx.cell, held.placed, held.held, held.tcp_T_held)
+                statements = [s.statement for s in pending]
+        view = PredictedPathView()
+        if pending:
+            try:
+                plan = plan_or_refuse(statements, ctx.robot, ctx.cell, start, objects)
+            except TeleprogError:
+                plan = None
+            if plan is None or plan.duration <= 0:
+                view = PredictedPathView(numbers=numbers)
+            else:
+                points = tool_path(plan, ctx.robot, ctx.frames, ctx.settings.predicted_points)
+                view = PredictedPathView(points=points.tolist(), numbers=numbers, end_q=plan.q_final.tolist())
+        with ctx.lock:
+            if seq != self._predicted_seq:
+                return  # a newer refresh started meanwhile: it publishes
             self._predicted = view
         ctx.bus.emit([PredictedPathChanged(predicted=view)])
 

@@ -45,10 +45,22 @@ def statement_refusal(statement: Statement) -> str | None:
     return refusal
 
 
+_TEXTS: dict[int, tuple[Statement, str]] = {}
+
+
 def statement_text(statement: Statement) -> str:
     """The statement as text; one that cannot be written (a value no statement may hold) is
-    named by its kind and why, so a list of what was sent can always be shown."""
+    named by its kind and why, so a list of what was sent can always be shown. Kept per
+    statement object, as a refusal is (a submission writes each statement three times: its
+    check, the sent list, the submission's event)."""
+    kept = _TEXTS.get(id(statement))
+    if kept is not None and kept[0] is statement:
+        return kept[1]
     try:
-        return format_statement(statement)
+        text = format_statement(statement)
     except Exception as exc:  # noqa: BLE001 - a list of what was sent must never fail to render
-        return f"{getattr(statement, 'kind', type(statement).__name__)} (cannot be written: {exc})"
+        text = f"{getattr(statement, 'kind', type(statement).__name__)} (cannot be written: {exc})"
+    if len(_TEXTS) > 100_000:  # statements long gone keep ids alive: start again
+        _TEXTS.clear()
+    _TEXTS[id(statement)] = (statement, text)
+    return text
