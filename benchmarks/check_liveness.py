@@ -5,7 +5,9 @@ a slow drive on the robot while the console is made to work hard, one load after
 
 1. ``stall``: ``POST /api/faults/stall`` holds the session for 5 s (a plan computing);
 2. ``load``: ``POST /api/program/upload`` of a ``--lines``-line program (default 20,000);
-3. ``submit``: the first ``--submit`` statements of a program submitted at once (default 1,000).
+3. ``preview start``: a preview of the first ``--submit`` statements begun (the answer; the task
+   panel's play of the range follows on its own thread), then ended;
+4. ``submit``: the first ``--submit`` statements of a program submitted at once (default 1,000).
 
 Throughout, the telerobot's ``/health`` is polled every 50 ms (no delay: it is the robot's own
 port) and the console's ``/api/health`` is timed. Reported per load: its wall time, whether the
@@ -159,6 +161,8 @@ def main() -> None:
             _start_drive(c)
             c.api("POST", "/api/program/upload", params={"filename": "long.tp"}, content=_program(a.submit).encode(),
                   headers={"content-type": "text/plain"})
+            out["preview_start"] = watch(c, lambda: c.api("POST", "/api/preview/begin", json={"start": 0, "stop": a.submit})["stop"])
+            c.api("POST", "/api/preview/end")
             out["submit_run"] = watch(c, lambda: len(c.api("POST", "/api/submit", json={"start": 0, "stop": a.submit})["items"]))
         finally:
             c.close()
@@ -169,7 +173,8 @@ def main() -> None:
     print(f"| load ({a.delay_ms:g} ms link, machine load {out['load_before']:.1f} -> {out['load_after']:.1f}) | wall | robot halted | "
           "robot states | console /api/health median / p99 / max |")
     print("|---|---:|---|---|---:|")
-    names = {"stall": f"session stalled {a.stall_s:g} s", "load": f"upload of {a.lines:,} lines", "submit_run": f"submit of {a.submit:,} statements"}
+    names = {"stall": f"session stalled {a.stall_s:g} s", "load": f"upload of {a.lines:,} lines",
+             "preview_start": f"preview start of {a.submit:,} statements", "submit_run": f"submit of {a.submit:,} statements"}
     for key, name in names.items():
         r = out[key]
         h = r["console_health_ms"]

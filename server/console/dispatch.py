@@ -68,7 +68,7 @@ from server.console.events import (
 from server.console.robot_account import AccountBooks
 from server.console.sent import Sent
 from server.console.robot_seam import RobotLink
-from server.console.statement_checks import checked_statement, statement_refusal, statement_text
+from server.console.statement_checks import statement_refusal, statement_text
 from server.console.views import Caller, SentListView
 from server.robot_client import RobotRestarted
 from shared.errors import InputError, TeleprogError
@@ -173,10 +173,8 @@ class Dispatch(AccountBooks):
                     raise RefusedByRule(check)
                 statements = list(editor.state.statements[start:stop])
                 for i, st in enumerate(statements):  # whatever built them, they are checked before they leave
-                    try:
-                        checked_statement(st)
-                    except TeleprogError as exc:
-                        raise InputError(f"statement {start + i + 1}: {exc}") from None
+                    if (refused := statement_refusal(st)) is not None:  # once per statement object
+                        raise InputError(f"statement {start + i + 1}: {refused}")
                 self._regime_rules(statements, start, stop)
                 self._mode_line(statements, start, stop)  # raises ConsoleLineAdded after adding one
                 start_state = self._desk.start

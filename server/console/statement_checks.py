@@ -11,6 +11,10 @@ from shared.language.formatter import format_statement
 from shared.language.statements import Statement
 
 
+_TEXTS: dict[int, tuple[Statement, str]] = {}
+"""id(statement) -> (the statement, kept alive; its text): ``statement_text``'s."""
+
+
 def checked_statement(statement: Statement) -> Statement:
     """``statement`` validated again by its own model and formatted once; ``InputError`` (a
     validation error) or the formatter's error names what is wrong."""
@@ -20,7 +24,8 @@ def checked_statement(statement: Statement) -> Statement:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first.get("loc", ()))
         raise InputError(f"{statement.kind}: {where + ': ' if where else ''}{first.get('msg', 'invalid')}") from None
-    format_statement(checked)  # raises InputError for what cannot be written (a NaN, say)
+    text = format_statement(checked)  # raises InputError for what cannot be written (a NaN, say)
+    _keep_text(statement, text)  # the same text: the two models are equal
     return checked
 
 
@@ -45,9 +50,6 @@ def statement_refusal(statement: Statement) -> str | None:
     return refusal
 
 
-_TEXTS: dict[int, tuple[Statement, str]] = {}
-
-
 def statement_text(statement: Statement) -> str:
     """The statement as text; one that cannot be written (a value no statement may hold) is
     named by its kind and why, so a list of what was sent can always be shown. Kept per
@@ -60,7 +62,11 @@ def statement_text(statement: Statement) -> str:
         text = format_statement(statement)
     except Exception as exc:  # noqa: BLE001 - a list of what was sent must never fail to render
         text = f"{getattr(statement, 'kind', type(statement).__name__)} (cannot be written: {exc})"
+    _keep_text(statement, text)
+    return text
+
+
+def _keep_text(statement: Statement, text: str) -> None:
     if len(_TEXTS) > 100_000:  # statements long gone keep ids alive: start again
         _TEXTS.clear()
     _TEXTS[id(statement)] = (statement, text)
-    return text
