@@ -242,6 +242,50 @@ def test_a_stalled_session_neither_silences_the_link_nor_delays_a_stop(tmp_path)
         stop_process(console.proc)
 
 
+def test_a_long_load_and_a_long_submit_never_silence_the_running_robot(tmp_path) -> None:
+    """Issue 35: a 20,000-line program loaded and 1,000 statements submitted while the robot runs
+    a drive, over a 300 ms link: the console's own work never holds its heartbeats, so the robot
+    never halts for silence (its ``/health`` polled throughout, with no delay)."""
+    console = start_console(tmp_path, "--delay-ms", "300")
+    try:
+        robot_port, _ = _ports(console)
+        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
+        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
+        _api(console, "PUT", "/api/regime", {"regime": "free"})
+        q = _api(console, "GET", "/api/arm")["q_deg"]
+        for text in ("SPEED 1 %", f"DRIVE J1 TO {q[0] + 60:.2f} deg"):  # outlasts both loads
+            _api(console, "POST", "/api/program/insert", {"text": text})
+        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
+        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        seen: list[dict] = []
+        done = threading.Event()
+
+        def poll() -> None:
+            while not done.is_set():
+                seen.append(health())
+                time.sleep(0.05)
+
+        watcher = threading.Thread(target=poll, daemon=True)
+        watcher.start()
+        try:
+            for lines in (20_000, 1_000):
+                text = "".join(f"DRIVE J1 TO {q[0] + (-1) ** i * 0.5:.1f} deg\n" for i in range(lines))
+                r = httpx.post(console.url + "/api/program/upload", params={"filename": "long.tp"}, content=text.encode(),
+                               headers={**CLIENT, "content-type": "text/plain"}, timeout=120)
+                assert r.status_code == 200 and len(r.json()["entries"]) == lines + 1, r.text[:300]
+            r = httpx.post(console.url + "/api/submit", json={"start": 0, "stop": 1_000}, headers=CLIENT, timeout=120)
+            assert r.status_code == 200 and len(r.json()["items"]) >= 1_002, r.text[:300]
+            wait_for(lambda: health()["queued"] >= 1_000, 30, 0.1, "the robot holding the 1,000 statements")
+            time.sleep(2 * SILENCE_CONTRACT_S)  # the console's work after the answer: what the robot hears meanwhile
+        finally:
+            done.set()
+            watcher.join(10)
+        assert seen and all(h["halted"] is None for h in seen), next(h for h in seen if h["halted"] is not None)
+        assert {h["state"] for h in seen} == {"running"}, {h["state"] for h in seen}
+    finally:
+        stop_process(console.proc)
+
+
 def test_fault_injection_is_off_unless_asked(tmp_path) -> None:
     from fastapi.testclient import TestClient
 
