@@ -99,6 +99,44 @@ def _start_drive(c: Console) -> None:
     Console._wait(lambda: c.robot.get("/health").json()["state"] == "running", 30, "the drive running")
 
 
+def stop_in_stall(c: Console, stall_s: float) -> dict:
+    """STOP pressed while the session stalls, with a drive running: when the robot stops (its own
+    ``/health``) and when the console shows the STOP acknowledged (``/api/link``'s
+    ``recovery_pending`` empty), both from the press, each polled every 5 ms on a thread of its own."""
+    _start_drive(c)
+    c.api("POST", "/api/faults/stall", json={"seconds": stall_s})
+    time.sleep(0.5)  # well inside the stall
+    times: dict = {"robot_stopped_s": None, "acknowledged_s": None}
+    t0 = time.perf_counter()
+
+    def robot_stopped() -> bool:
+        return c.robot.get("/health").json()["state"] == "stopped"
+
+    def acknowledged() -> bool:
+        pending = httpx.get(f"http://127.0.0.1:{c.port}/api/link", headers=CLIENT, timeout=60).json()["recovery_pending"]
+        seen.append(bool(pending))
+        return any(seen) and not pending
+
+    seen: list[bool] = []
+
+    def poll(key: str, done) -> None:
+        while time.perf_counter() - t0 < stall_s + 10:
+            if done():
+                times[key] = time.perf_counter() - t0
+                return
+            time.sleep(0.005)
+
+    pollers = [threading.Thread(target=poll, args=("robot_stopped_s", robot_stopped)),
+               threading.Thread(target=poll, args=("acknowledged_s", acknowledged))]
+    for t in pollers:
+        t.start()
+    httpx.post(f"http://127.0.0.1:{c.port}/api/robot/stop", headers=CLIENT, timeout=60)
+    for t in pollers:
+        t.join()
+    time.sleep(max(0.0, stall_s - (time.perf_counter() - t0)))
+    return times
+
+
 def _program(lines: int) -> str:
     """``lines`` small joint moves back and forth (each a valid statement)."""
     return "\n".join(f"DRIVE J1 TO {(-1) ** i * 0.5:.1f} deg" for i in range(lines)) + "\n"
@@ -154,6 +192,7 @@ def main() -> None:
             _start_drive(c)
             out["stall"] = watch(c, lambda: (c.api("POST", "/api/faults/stall", json={"seconds": a.stall_s}),
                                              time.sleep(a.stall_s + 0.5))[0])
+            out["stop_in_stall"] = stop_in_stall(c, a.stall_s)
             text = _program(a.lines)
             out["load"] = watch(c, lambda: len(c.api("POST", "/api/program/upload", params={"filename": "long.tp"},
                                                      content=text.encode(), headers={"content-type": "text/plain"})["entries"]) - 1)
@@ -175,6 +214,11 @@ def main() -> None:
     print("|---|---:|---|---|---:|")
     names = {"stall": f"session stalled {a.stall_s:g} s", "load": f"upload of {a.lines:,} lines",
              "preview_start": f"preview start of {a.submit:,} statements", "submit_run": f"submit of {a.submit:,} statements"}
+    st = out["stop_in_stall"]
+    fmt = lambda v: "never" if v is None else f"{v:.2f} s"  # noqa: E731
+    print(f"\nSTOP pressed during a {a.stall_s:g} s stall ({a.delay_ms:g} ms each way): the robot stopped after "
+          f"{fmt(st['robot_stopped_s'])}, the console showed it acknowledged after {fmt(st['acknowledged_s'])} "
+          f"(goal: the round trip, {2 * a.delay_ms / 1e3:.1f} s, plus 0.2 s)\n")
     for key, name in names.items():
         r = out[key]
         h = r["console_health_ms"]

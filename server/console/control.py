@@ -109,9 +109,11 @@ class ControlLock:
         return view
 
     def holds(self, client: Caller | str | None) -> bool:
-        """Whether the caller holds control (presents the holder's token); nobody does while it is free."""
-        with self._ctx.lock:
-            return self._holder is not None and self._presents_token(as_caller(client))
+        """Whether the caller holds control (presents the holder's token); nobody does while it is
+        free. One read of the token, no lock: ``GET /api/link`` asks this, and must answer while a
+        long computation holds the session's lock (the token is set and cleared with the holder)."""
+        token, caller = self._token, as_caller(client)
+        return token is not None and caller.token is not None and secrets.compare_digest(caller.token.encode(), token.encode())
 
     def check(self, client: Caller | str | None) -> None:
         """Refuse a call that changes state unless nobody holds control or the caller presents

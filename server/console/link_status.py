@@ -67,32 +67,35 @@ class LinkStatus:
             return {"children": "status unknown"}
 
     def _round_trip(self) -> float | None:
-        """The median of the last five measured round trips (under the lock; ``statistics``
-        gives numpy's median of five floats in a microsecond, not twenty)."""
-        trips = self._dispatch.round_trips
-        return float(statistics.median(trips[-5:])) if trips else None
+        """The median of the last five measured round trips (``statistics`` gives numpy's median
+        of five floats in a microsecond, not twenty). The slice is one copy, taken whole, so no
+        lock is needed."""
+        trips = self._dispatch.round_trips[-5:]
+        return float(statistics.median(trips)) if trips else None
 
     def telemetry_age_s(self) -> float | None:
         """``view().telemetry_age_s`` alone (the remote arm's view needs only this): since the
-        newest frame arrived, plus the one-way delay."""
-        with self._ctx.lock:
-            rtt = self._round_trip()
-            newest = self._remote.newest()
-            if newest is None:
-                return None
-            return self._ctx.clock() - newest[1] + (rtt / 2 if rtt is not None else 0.0)
+        newest frame arrived, plus the one-way delay (read without the session's lock, as the view is)."""
+        rtt = self._round_trip()
+        newest = self._remote.newest()
+        if newest is None:
+            return None
+        return self._ctx.clock() - newest[1] + (rtt / 2 if rtt is not None else 0.0)
 
     def view(self, *, address: bool = False) -> LinkView:
         """The link now. The robot's address only with ``address`` (``GET /api/link`` to the
         holder of control): everything published, and every other caller, gets ``url`` None."""
+        # read without the session's lock: a long computation holding it must not keep the
+        # link's state (a STOP's acknowledgement, silence, the robot's state) from anyone. Each
+        # read is one step: attributes set once, a slice, the mirror's newest (frame, time)
+        # tuple, a copy of the pending dict.
         d = self._dispatch
-        with self._ctx.lock:
-            robot, url = d.robot, d.url
-            rtt = self._round_trip()
-            newest = self._remote.newest()
-            frame, at = newest if newest is not None else (None, None)
-            ago = self._ctx.clock() - at if at is not None else None
-            recovery = list(self.recovery.pending.values()) if self.recovery is not None else []
+        robot, url = d.robot, d.url
+        rtt = self._round_trip()
+        newest = self._remote.newest()
+        frame, at = newest if newest is not None else (None, None)
+        ago = self._ctx.clock() - at if at is not None else None
+        recovery = list(self.recovery.pending.copy().values()) if self.recovery is not None else []
         configured = url is not None
         url = url if address else None
         delay = rtt / 2 if rtt is not None else None

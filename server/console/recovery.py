@@ -167,8 +167,12 @@ class Recovery:
             try:
                 ack = await call(robot)
             except Exception as exc:  # noqa: BLE001 - told, never lost
+                self.pending.pop(key, None)
                 self._ctx.after.post(self._acknowledged, what, key, None, None, exc)
                 return
+            # answered: no longer pending at once (one dict step on this loop, no lock), so the
+            # link's view shows it while the after thread may still wait for the session's lock
+            self.pending.pop(key, None)
             self._ctx.after.post(self._acknowledged, what, key, ack, self._ctx.clock() - t0, None)
 
         asyncio.run_coroutine_threadsafe(run(), loop)
@@ -177,11 +181,11 @@ class Recovery:
                       error: Exception | None) -> None:
         if error is not None:
             self._ctx.bus.emit([Notice(level="error", message=f"{what} failed: {error}")])
+        self.pending.pop(key, None)  # (popped on the loop already; a fake robot's tests call this directly)
         if round_trip is not None:
             self._dispatch.note_round_trip(round_trip)
-        with self._ctx.lock:
-            self.pending.pop(key, None)
-            if ack is not None:
+        if ack is not None:
+            with self._ctx.lock:
                 self._remote.take_reported_objects(ack.robot)
         if ack is not None:
             level = "info" if ack.applied else "warning"
