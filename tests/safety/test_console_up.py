@@ -73,6 +73,21 @@ def _ports(console: RunningConsole) -> tuple[int, int]:
     return int(m[1]), int(m[2])
 
 
+def _drive_running(console: RunningConsole, speed_pct: float, degrees: float):
+    """A live link, the free regime, and a slow drive of joint 1 by ``degrees`` at ``speed_pct``
+    submitted and running on the robot; returns a reader of the robot's own ``/health`` (no delay)."""
+    robot_port, _ = _ports(console)
+    wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
+    health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
+    _api(console, "PUT", "/api/regime", {"regime": "free"})
+    q = _api(console, "GET", "/api/arm")["q_deg"]
+    for text in (f"SPEED {speed_pct:g} %", f"DRIVE J1 TO {q[0] + degrees:.2f} deg"):
+        _api(console, "POST", "/api/program/insert", {"text": text})
+    _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
+    wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+    return health
+
+
 def test_frozen_link_shows_silent_and_stale_then_live_again(tmp_path) -> None:
     console = start_console(tmp_path, "--delay-ms", "100")
     link_pid = None
@@ -166,15 +181,7 @@ def test_a_frozen_console_halts_the_robot_within_the_limit_and_resume_continues(
     console = start_console(tmp_path, "--delay-ms", "100")
     frozen = False
     try:
-        robot_port, _ = _ports(console)
-        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
-        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
-        _api(console, "PUT", "/api/regime", {"regime": "free"})
-        q = _api(console, "GET", "/api/arm")["q_deg"]
-        for text in ("SPEED 3 %", f"DRIVE J1 TO {q[0] + 40:.2f} deg"):
-            _api(console, "POST", "/api/program/insert", {"text": text})
-        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
-        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        health = _drive_running(console, speed_pct=3, degrees=40)
         os.kill(console.proc.pid, signal.SIGSTOP)
         frozen = True
         held = wait_for(lambda: (h := health())["state"] == "stopped" and h, SILENCE_CONTRACT_S + LOADED_MACHINE_MARGIN_S,
@@ -208,15 +215,7 @@ def test_a_stalled_session_neither_silences_the_link_nor_delays_a_stop(tmp_path)
     delay_s, stall_s = 0.3, 5.0
     console = start_console(tmp_path, "--delay-ms", str(delay_s * 1e3), "--fault-injection")
     try:
-        robot_port, _ = _ports(console)
-        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
-        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
-        _api(console, "PUT", "/api/regime", {"regime": "free"})
-        q = _api(console, "GET", "/api/arm")["q_deg"]
-        for text in ("SPEED 3 %", f"DRIVE J1 TO {q[0] + 40:.2f} deg"):
-            _api(console, "POST", "/api/program/insert", {"text": text})
-        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
-        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        health = _drive_running(console, speed_pct=3, degrees=40)
         assert _api(console, "POST", "/api/faults/stall", {"seconds": stall_s})["started"]
         stalled_at = time.monotonic()
         # twice the silence contract with the session stalled: the robot still hears the console
@@ -256,15 +255,7 @@ def test_a_long_load_and_a_long_submit_never_silence_the_running_robot(tmp_path)
     never halts for silence (its ``/health`` polled throughout, with no delay)."""
     console = start_console(tmp_path, "--delay-ms", "300")
     try:
-        robot_port, _ = _ports(console)
-        wait_for(lambda: _link(console)["status"] == "live", 60, 0.1, "a live link")
-        health = lambda: httpx.get(f"http://127.0.0.1:{robot_port}/health", timeout=5).json()  # noqa: E731
-        _api(console, "PUT", "/api/regime", {"regime": "free"})
-        q = _api(console, "GET", "/api/arm")["q_deg"]
-        for text in ("SPEED 1 %", f"DRIVE J1 TO {q[0] + 60:.2f} deg"):  # outlasts both loads
-            _api(console, "POST", "/api/program/insert", {"text": text})
-        _api(console, "POST", "/api/submit", {"start": 0, "stop": 2})
-        wait_for(lambda: health()["state"] == "running", 20, 0.05, "the drive running on the robot")
+        health = _drive_running(console, speed_pct=1, degrees=60)  # outlasts both loads
         seen: list[dict] = []
         done = threading.Event()
 
@@ -277,7 +268,7 @@ def test_a_long_load_and_a_long_submit_never_silence_the_running_robot(tmp_path)
         watcher.start()
         try:
             for lines in (20_000, 1_000):
-                text = "".join(f"DRIVE J1 TO {q[0] + (-1) ** i * 0.5:.1f} deg\n" for i in range(lines))
+                text = "".join(f"DRIVE J1 TO {(-1) ** i * 0.5:.1f} deg\n" for i in range(lines))
                 r = httpx.post(console.url + "/api/program/upload", params={"filename": "long.tp"}, content=text.encode(),
                                headers={**CLIENT, "content-type": "text/plain"}, timeout=120)
                 assert r.status_code == 200 and len(r.json()["entries"]) == lines + 1, r.text[:300]
