@@ -217,6 +217,8 @@ class Console:
         self.program.show(program)
         self.preview.show_program(program)
         self.monitor.show_program(program)
+        if self.task is not None:
+            self.task.sync_commands()  # the action buttons follow the program's end
         if self.banner is not None:
             self.banner.show_auto_generate(program.auto_generate)
 

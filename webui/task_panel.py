@@ -6,7 +6,11 @@
   marking where the virtual cell (or the preview player) stands: marked places shaded, a token;
 * the robot's marking and the actions its reports made, and every task deviation in red with
   the transition that was expected;
-* Save buttons for the net generated from the recognised actions (PNML, JSON, PNG).
+* Save buttons for the net generated from the recognised actions (PNML, JSON, PNG);
+* task-level commands (issue 40): a button for each action the virtual marking enables, and a
+  goal box (atoms typed, or picked from the net's places) whose Plan button inserts the whole plan;
+  the lines they insert are ordinary program lines, marked with their action
+  (``server.console.task_commands``).
 
 The recognition is the session's (``server.console.task_monitor``); this module only draws its
 ``TaskView``. The net picture comes from ``shared.tasknet.layout``, the same drawing as
@@ -116,6 +120,70 @@ class TaskPanel:
         self.save_pnml.on_click(lambda e: self._save(e, "pnml"))
         self.save_json.on_click(lambda e: self._save(e, "json"))
         self.save_png.on_click(lambda e: self._save(e, "png"))
+        self._gui = gui
+        self._buttons: dict[str, viser.GuiButtonHandle] = {}
+        self._offered_for: tuple | None = None  # (the program's state, the virtual marking) the buttons show
+        self.commands = None
+        if session.task.available:
+            view = session.task.view()
+            with gui.add_folder("Plan by task") as folder:
+                self.commands = folder
+                self.goal = gui.add_text("Goal", initial_value="", hint="atoms, e.g. PEGINHOLE(PEG,HOLE2); several: comma")
+                self.pick = gui.add_dropdown("Add place", options=("(pick a place)", *view.atoms))
+                self.plan = gui.add_button("Plan goal", hint="insert the actions that reach the goal from the virtual cell")
+                self.offered_label = gui.add_markdown("Actions enabled where the program ends:")
+            self.pick.on_update(lambda _e: self._picked())
+            self.plan.on_click(lambda e: self._plan_goal(e))
+            self.sync_commands()
+
+    # -- task-level commands -----------------------------------------------------------------
+    def _picked(self) -> None:
+        atom = self.pick.value
+        if atom.startswith("("):
+            return
+        now = self.goal.value.strip()
+        if atom not in now:
+            self.goal.value = f"{now}, {atom}" if now else atom
+        self.pick.value = "(pick a place)"
+
+    def _plan_goal(self, event: viser.GuiEvent) -> None:
+        goal = self.goal.value.strip()  # atoms, read by the task space's own parser (commas inside atoms too)
+        if not goal:
+            self.actions.show_notice("warning", "type a goal first (an atom of the task net, e.g. PEGINHOLE(PEG,HOLE2))", None)
+            return
+        done = self.actions.run("plan goal", lambda: self.session.task_commands.goal(goal, client=None))
+        if done is not None and done.plan is not None:
+            self.actions.show_notice("info", f"inserted {', '.join(done.plan.action_texts) or 'nothing (the goal holds)'} "
+                                     f"({sum(len(r.statements) for r in done.rows)} statements)", None)
+
+    def _take_action(self, text: str) -> None:
+        done = self.actions.run("task action", lambda: self.session.task_commands.action(text, client=None))
+        if done is not None:
+            self.actions.show_notice("info", f"inserted {text} ({len(done.rows[0].statements)} statements)", None)
+
+    def sync_commands(self) -> None:
+        """One button per action enabled where the program leaves the virtual cell, in the task
+        space's order; asked again only when the program or the virtual marking changed (the tab
+        is redrawn at every step of a preview's player)."""
+        if self.commands is None:
+            return
+        key = (self.session.program.state, tuple(self.session.task.view().virtual_marking))
+        if key == self._offered_for:
+            return
+        offered = self.session.task_commands.offered(wait=False)  # never hold the page's events for a play
+        if offered is None:
+            return  # a play is under way: the next event asks again
+        self._offered_for = key
+        if list(self._buttons) == offered:
+            return
+        for button in self._buttons.values():
+            button.remove()
+        self._buttons = {}
+        with self.commands:
+            for text in offered:
+                button = self._gui.add_button(text, hint=f"insert the statements of {text}")
+                button.on_click(lambda _e, t=text: self._take_action(t))
+                self._buttons[text] = button
 
     def _net(self, view: TaskView) -> PTNet | None:
         model = view.space_net
@@ -129,6 +197,7 @@ class TaskPanel:
         net = self._net(view)
         picture = "" if net is None else net_picture(net, view.preview_marking if view.preview_active else view.virtual_marking)
         self.block.content = task_html(view, picture)
+        self.sync_commands()
 
     def _save(self, event: viser.GuiEvent, kind: str) -> None:
         net = self.session.task.generated_net()

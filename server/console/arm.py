@@ -108,6 +108,11 @@ class VirtualArm:
         """The moved objects' poses, the held one in the virtual gripper (under the lock)."""
         return self.objects.poses(self._state.world_T_tcp)
 
+    def object_poses_now(self) -> dict[str, np.ndarray]:
+        """:meth:`object_poses`, taking the lock (from any thread)."""
+        with self._ctx.lock:
+            return self.object_poses()
+
     # -- driving -----------------------------------------------------------------------------
     def set_q(self, q: np.ndarray, *, client: Caller | str | None = None) -> VirtualState:
         """Put the virtual robot at ``q`` (rad; checked against the joint ranges)."""

@@ -38,6 +38,7 @@ import numpy as np
 
 from server.console.console_lines import ConsoleLines
 from server.console.program_plans import ProgramPlans, grip_key
+from server.console.task_lines import TaskLines
 from server.console.context import ConsoleContext
 from server.console.edit_check import rest_breaks
 from server.console.enums import Regime
@@ -79,7 +80,7 @@ def _copy_editor(editor: Editor) -> Editor:
     return trial
 
 
-class ProgramDesk(ConsoleLines, ProgramPlans):
+class ProgramDesk(ConsoleLines, ProgramPlans, TaskLines):
     """Editor, generator, files and the program's start."""
 
     def __init__(self, ctx: ConsoleContext, control: ControlLock, modes: Modes) -> None:
@@ -101,6 +102,7 @@ class ProgramDesk(ConsoleLines, ProgramPlans):
         ConsoleLines.__init__(self)
         self._refusal: tuple[RefusalView, tuple] | None = None  # and the statements it was made on
         ProgramPlans.__init__(self)
+        TaskLines.__init__(self)
         self._entries = EntryViews()
 
     # -- reading -----------------------------------------------------------------------------
@@ -113,7 +115,7 @@ class ProgramDesk(ConsoleLines, ProgramPlans):
         with self._ctx.lock:
             st = self._editor.state
             durations = self.durations()
-            entries = self._entries.views(st.statements, durations, self._added_marks())
+            entries = self._entries.views(st.statements, durations, {**self._task_marks(), **self._added_marks()})
             entries.append(StatementView(index=st.empty_index, kind="EMPTY", text="", statement=None))
             e = self._editor
             return ProgramView(

@@ -44,6 +44,7 @@ from server.console.modes import Modes
 from server.console.previewer import Previewer
 from server.console.program_desk import ProgramDesk
 from server.console.readiness import Readiness
+from server.console.task_commands import TaskCommands
 from server.console.task_monitor import TaskMonitor
 from server.console.recovery import Recovery
 from server.console.remote import RemoteMirror
@@ -114,6 +115,7 @@ class Session:
         self.readiness = Readiness(ctx, self.modes, self.program, self.dispatch, self.preview)
         self.task = TaskMonitor(ctx, preview_source=self._preview_source)
         self.bus.subscribe(self.task.on_event)
+        self.task_commands = TaskCommands(ctx, self.control, self.task, self.program, self.arm)
         self._closed = threading.Event()
 
     def _preview_source(self, stop: int):

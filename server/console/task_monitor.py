@@ -113,11 +113,9 @@ class TaskMonitor:
     """``session.task``: recognition on both sides and deviations (see the module docstring)."""
 
     def __init__(self, ctx: ConsoleContext, task_file: str | None = None, preview_source: PreviewSource | None = None) -> None:
-        self._ctx = ctx
-        self._preview_source = preview_source
+        self._ctx, self._preview_source = ctx, preview_source
         self._preview: _PreviewPlay | None = None
-        self._lock = threading.Lock()
-        self._play_lock = threading.Lock()  # a previewed range's play, outside ``_lock``
+        self._lock, self._play_lock = threading.Lock(), threading.Lock()  # the play's: a previewed range's, outside ``_lock``
         self._played: _PreviewPlay | None = None  # the newest play (``_preview`` while previewing)
         self._recognition = _KeptRecognition(ctx.cell)  # per statement, from the newest start
         # the plays (seconds for a long range) run here, never on the thread that previewed or submitted
@@ -364,6 +362,12 @@ class TaskMonitor:
             log.warning("could not play the previewed range for the task panel: %s", exc)
             return None
 
+    def program_end(self, wait: bool = True) -> tuple[frozenset[str], dict[str, np.ndarray]] | None | bool:
+        """The marking and objects' poses where the program leaves the virtual cell (kept per
+        statement); None: no program or model; False: busy playing and not ``wait``."""
+        source = self._preview_source(None) if self.space is not None and self._preview_source else None
+        return None if source is None else self._recognition.program_end(self.space, source, self._frames, wait)
+
     def _recognise(self, statements, start_q, world: ObjectWorld, what: str) -> ProgramRecognition:
         with self._work(what) as step:
             return self._recognition.recognise(self.space, statements, start_q, world, step)
@@ -515,7 +519,7 @@ class _KeptRecognition:
     def __init__(self, cell) -> None:
         self._cell = cell
         self._kept: tuple[tuple, PrefixRecognition] | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # end() plays under it, as recognise() does
 
     def recognise(self, space: TaskSpace, statements, start_q, world: ObjectWorld,
                   progress: Callable[[int, int], None]) -> ProgramRecognition:
@@ -526,6 +530,23 @@ class _KeptRecognition:
             if self._kept is None or self._kept[0] != key:
                 self._kept = (key, PrefixRecognition(self._cell, space, q, world))
             return self._kept[1].recognise(statements, progress=progress)
+
+    def program_end(self, space: TaskSpace, source, frames, wait: bool = True):
+        """``TaskMonitor.program_end`` for a preview source's whole program."""
+        statements, start_q, poses, held = source
+        if not statements:
+            return None
+        robot = self._cell.robot
+        world = ObjectWorld(self._cell)
+        world.take_reported(poses, held, frames.world_T_tcp(robot, np.asarray(start_q)))
+        if not self._lock.acquire(blocking=wait):
+            return False  # a play holds it (seconds on a long range): the caller asks again later
+        try:
+            rec = self.recognise(space, statements, start_q, world, lambda _done, _total: None)
+            end_world, q_end = self._kept[1].world_at_end(), self._kept[1].q_end.copy()
+        finally:
+            self._lock.release()
+        return frozenset(rec.final_marking), end_world.poses(frames.world_T_tcp(robot, q_end))
 
 
 def _world_key(world: ObjectWorld) -> tuple:

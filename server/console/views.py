@@ -102,6 +102,8 @@ class StatementView(_View):
         None, description="'console' for a line the console put in (a MODE the regime needs); None: the operator's"
     )
     added_reason: str | None = Field(None, description="why the console added the line (it can be deleted like any other)")
+    action: str | None = Field(None, description="the task action this line serves, when a task-level command "
+                               "(a goal, an action of the Task tab) put it in, e.g. grasp(PEG)")
     duration_s: float | None = Field(
         None, description="planned duration from the program's start, s; None: not planned (empty, a task, "
         "after a planning refusal, or the start is unknown)"

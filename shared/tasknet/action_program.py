@@ -21,6 +21,7 @@ statements serve which action.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,8 +76,10 @@ def _mm(p: np.ndarray) -> str:
 class _Scene:
     """Where the objects are (mm, work frame) as the actions move them."""
 
-    def __init__(self, cell) -> None:
+    def __init__(self, cell, poses: Mapping[str, np.ndarray] | None = None) -> None:
+        """``poses``: where the objects are now (world_T_object by name; default: as loaded)."""
         work_T_world = np.linalg.inv(cell.frame("work"))
+        poses = poses or {}
         self.cell = cell
         self.features = {n: (work_T_world @ f.world_T_feature)[:3, 3] * 1e3 for n, f in cell.features.items()}
         self.pos: dict[str, np.ndarray] = {}
@@ -87,7 +90,7 @@ class _Scene:
             box = next((s for s in o.shapes if s.kind == "box"), None)
             if not o.movable or box is None:
                 continue
-            p = (work_T_world @ o.world_T_object)[:3, 3] * 1e3
+            p = (work_T_world @ np.asarray(poses.get(o.name, o.world_T_object), dtype=float))[:3, 3] * 1e3
             self.pos[o.name] = p
             self.top[o.name] = float(box.link_T_shape[2, 3] + box.size[2] / 2.0) * 1e3
             self.length[o.name] = float(box.size[2]) * 1e3
@@ -138,10 +141,12 @@ def _cell_name(space: TaskSpace, individual: str) -> str:
 
 
 def action_statements(space: TaskSpace, cell, actions: list[GroundAction] | tuple[GroundAction, ...],
-                      templates: dict[str, tuple[str, ...]] | None = None) -> list[ActionStatements]:
-    """The statements of each action, filled from the cell's modelled poses in order."""
+                      templates: dict[str, tuple[str, ...]] | None = None,
+                      poses: Mapping[str, np.ndarray] | None = None) -> list[ActionStatements]:
+    """The statements of each action, filled from the objects' modelled poses in order: where
+    ``poses`` has them (the virtual cell's, world_T_object by name), else as the cell loads them."""
     table = TEMPLATES if templates is None else templates
-    scene = _Scene(cell)
+    scene = _Scene(cell, poses)
     out = []
     for act in actions:
         if act.rule not in table:

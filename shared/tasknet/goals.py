@@ -142,6 +142,36 @@ def plan_goal(space: TaskSpace, start: frozenset[str] | set[str], goal: str | li
     return GoalPlan(atoms, tuple(kept), ordered_start, tuple(run), final, len(graph))
 
 
+def enabled_actions(space: TaskSpace, marking: frozenset[str] | set[str]) -> list[GroundAction]:
+    """The actions that can fire at ``marking`` (their preconditions hold, not all their results
+    hold already, as a C/E net's event), in the task space's order, leaving out any that would put
+    an object in two places (``placement_groups``: the goal search skips those markings too)."""
+    m = frozenset(marking)
+    index = space.atom_index()
+    groups = [[space.atom_texts[i] for i in g] for g in placement_groups(space, index)]
+    out = []
+    for act in space.actions:
+        added = [a for a in act.post if a not in act.pre]
+        if not all(a in m for a in act.pre) or (added and all(a in m for a in added)):
+            continue
+        after = (m - set(act.delete)) | set(act.post)
+        if any(sum(a in after for a in g) > 1 for g in groups):
+            continue
+        out.append(act)
+    return out
+
+
+def resolve_action(space: TaskSpace, text: str) -> GroundAction:
+    """The action named ``text`` (``grasp(PEG)``; names compare without case, spaces ignored),
+    or ``InputError`` listing the task space's actions."""
+    want = "".join(text.split()).lower()
+    for act in space.actions:
+        if act.text.lower() == want:
+            return act
+    raise InputError(f"the task space {space.spec.name!r} has no action {text.strip()!r}; "
+                     f"actions: {', '.join(a.text for a in space.actions)}")
+
+
 def placement_groups(space: TaskSpace, index: dict[str, int]) -> list[list[int]]:
     """Atoms of which at most one can hold: a predicate relating an individual bound to a cell
     object to one bound to a cell feature (``PEGINHOLE(p, h)``) places the object, and a rigid

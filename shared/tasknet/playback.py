@@ -145,6 +145,8 @@ class PrefixRecognition:
         self._after: list[_After] = [self._snapshot(0)]
         self.replayed = 0
         """Statements played by the last :meth:`recognise` (the rest was kept)."""
+        self.q_end = np.asarray(start_q, dtype=float).copy()
+        """Where the last :meth:`recognise` left the arm (the plan's end, or the start of its refusal)."""
 
     def _snapshot(self, samples: int) -> _After:
         c = self._coordinator
@@ -183,4 +185,9 @@ class PrefixRecognition:
             self._played.append(segments[k].statement)
             self._after.append(self._snapshot(samples))
         self.replayed = len(segments) - keep
+        self.q_end = plan.q_final.copy()
         return _recognition(self._space, self._coordinator, plan, samples)
+
+    def world_at_end(self) -> ObjectWorld:
+        """The objects where the last :meth:`recognise` left them (a copy); the arm at ``q_end``."""
+        return self._world.copy()

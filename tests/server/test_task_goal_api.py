@@ -26,3 +26,77 @@ def test_a_goal_inserts_the_plan_and_an_unreachable_one_is_refused() -> None:
         assert bad.status_code == 400 and "PEGINHOLE(PEG,HOLE2)" in bad.json()["detail"]
         after = [e["text"] for e in client.get("/api/program").json()["entries"] if e["kind"] != "EMPTY"]
         assert after == texts
+
+
+def _program(client) -> list[dict]:
+    return [e for e in client.get("/api/program").json()["entries"] if e["kind"] != "EMPTY"]
+
+
+def test_a_goals_plan_is_one_edit_and_each_line_names_its_action() -> None:
+    with TestClient(create_app(ConsoleSettings(no_robot=True), build_page=False)) as client:
+        data = client.post("/api/task/goal", json={"goal": ["PEGINHOLE(PEG,HOLE2)"]}).json()
+        lines = _program(client)
+        assert [e["action"] for e in lines] == [row["action"] for row in data["statements"] for _ in row["statements"]]
+        assert [e["text"] for e in lines] == [s for row in data["statements"] for s in row["statements"]]
+        assert client.post("/api/program/undo").status_code == 200
+        assert _program(client) == []  # one undo takes the whole plan out
+        client.post("/api/program/redo")
+        assert [e["action"] for e in _program(client)] == [e["action"] for e in lines]
+
+
+def test_an_action_the_marking_enables_inserts_its_lines_and_one_it_does_not_is_refused() -> None:
+    with TestClient(create_app(ConsoleSettings(no_robot=True), build_page=False)) as client:
+        offered = client.get("/api/task/actions").json()
+        assert offered["enabled"] == ["grasp(PEG)"]  # the loaded cell: the peg stands in HOLE1, the hand empty
+        refused = client.post("/api/task/action", json={"action": "mate(PEG,HOLE2)"})
+        assert refused.status_code == 409 and "HOLDING(PEG) does not hold" in refused.json()["detail"]
+        unknown = client.post("/api/task/action", json={"action": "polish(PEG)"})
+        assert unknown.status_code == 400 and "grasp(PEG)" in unknown.json()["detail"]  # the actions are listed
+        r = client.post("/api/task/action", json={"action": " Grasp( peg ) "})
+        assert r.status_code == 200, r.text
+        assert r.json()["action"] == "grasp(PEG)" and r.json()["statements"][-1] == "TASK grasp(peg)"
+        assert [e["action"] for e in _program(client)] == ["grasp(PEG)"] * len(r.json()["statements"])
+        # an action's lines are ordinary lines: the operator edits them as any other
+        assert client.post("/api/program/select", json={"index": 0}).status_code == 200
+        assert client.post("/api/program/delete", json={}).status_code == 200
+        assert len(_program(client)) == len(r.json()["statements"]) - 1
+
+
+def test_task_commands_need_control_before_any_work() -> None:
+    with TestClient(create_app(ConsoleSettings(no_robot=True), build_page=False)) as client:
+        held = client.post("/api/control/request", headers={"X-Teleprog-Client": "alice"})
+        assert held.status_code == 200, held.text
+        for path, body in (("/api/task/goal", {"goal": ["PEGINHOLE(PEG,HOLE2)"]}), ("/api/task/action", {"action": "grasp(PEG)"})):
+            r = client.post(path, json=body, headers={"X-Teleprog-Client": "bob"})
+            assert r.status_code == 409 and "control" in r.json()["detail"], (path, r.status_code, r.text)
+        assert _program(client) == []
+
+
+def test_task_commands_continue_from_where_the_program_leaves_the_cell() -> None:
+    """An action button after another, or a goal after both, plans from the end of the program as
+    it stands (its play on the virtual cell), not from the virtual cell before it."""
+    with TestClient(create_app(ConsoleSettings(no_robot=True), build_page=False)) as client:
+        assert client.post("/api/task/action", json={"action": "grasp(PEG)"}).status_code == 200
+        offered = client.get("/api/task/actions").json()["enabled"]
+        assert "part(PEG,HOLE1)" in offered and "grasp(PEG)" not in offered  # the program holds the peg
+        again = client.post("/api/task/action", json={"action": "grasp(PEG)"})
+        assert again.status_code == 409 and "HANDEEMPTY" in again.json()["detail"]
+        held = client.post("/api/task/goal", json={"goal": ["PEGINHOLE(PEG,HOLE2)"]}).json()
+        assert held["actions"] == TRANSFER[1:3]  # the grasp is in the program; the hand keeps what it holds
+        assert client.post("/api/program/undo").status_code == 200
+        r = client.post("/api/task/goal", json={"goal": ["PEGINHOLE(PEG,HOLE2)", "HANDEEMPTY"]})
+        assert r.status_code == 200, r.text
+        assert r.json()["actions"] == TRANSFER[1:]
+        lines = _program(client)
+        assert [e["action"] for e in lines if e["text"].startswith("TASK")] == TRANSFER
+        assert client.get("/api/task/actions").json()["enabled"] == ["grasp(PEG)"]  # the peg stands in HOLE2, the hand empty
+        # previewed whole, the program is recognised as the transfer
+        n = len(lines)
+        assert client.post("/api/preview/begin", json={"start": 0, "stop": n}).status_code == 200
+        seen = client.post("/api/preview/seek", json={"t": client.get("/api/preview").json()["duration"]})
+        assert seen.status_code == 200, seen.text
+        client.app.state.console.session.task.settled()  # the range is played on the task panel's thread
+        client.post("/api/preview/seek", json={"t": client.get("/api/preview").json()["duration"]})
+        task = client.get("/api/task").json()
+        assert [a["action"] for a in task["preview_actions"]] == TRANSFER
+        assert "PEGINHOLE(PEG,HOLE2)" in task["preview_marking"] and "HANDEEMPTY" in task["preview_marking"]

@@ -141,3 +141,33 @@ def test_net_plan_cli_json_and_an_unreachable_goal() -> None:
     assert bad.returncode != 0
     assert "Traceback" not in bad.stderr and bad.stderr.count("\n") == 1
     assert "PEGINHOLE(PEG,HOLE2)" in bad.stderr and bad.stdout == ""
+
+
+def test_the_enabled_actions_follow_the_marking_and_never_put_an_object_in_two_places(cell, space) -> None:
+    from shared.tasknet.goals import enabled_actions, resolve_action
+
+    start = cell_marking(space, cell)
+    assert [a.text for a in enabled_actions(space, start)] == ["grasp(PEG)"]
+    holding = (start - {"HANDEEMPTY", "PEGFREE(PEG)"}) | {"HOLDING(PEG)"}
+    offered = [a.text for a in enabled_actions(space, holding)]
+    # the rules let mate(PEG,HOLE2) fire with the peg still in HOLE1; the offer leaves it out
+    assert "part(PEG,HOLE1)" in offered and "mate(PEG,HOLE2)" not in offered and "grasp(PEG)" not in offered
+    assert resolve_action(space, "PART(peg, hole1)").text == "part(PEG,HOLE1)"
+    with pytest.raises(InputError, match="no action 'fly\\(PEG\\)'"):
+        resolve_action(space, "fly(PEG)")
+
+
+def test_an_actions_statements_start_from_where_the_objects_are_now(cell, space) -> None:
+    """A grasp of a peg the operator moved goes to the peg, not to where the cell loads it."""
+    from shared.tasknet.goals import resolve_action
+
+    peg = next(o for o in cell.objects if o.name == "peg")
+    moved = np.array(peg.world_T_object, dtype=float)
+    moved[:3, 3] += [0.05, 0.02, 0.0]
+    grasp = [resolve_action(space, "grasp(PEG)")]
+    (as_loaded,) = action_statements(space, cell, grasp)
+    (now,) = action_statements(space, cell, grasp, poses={"peg": moved})
+    assert as_loaded.statements != now.statements
+    work_T_world = np.linalg.inv(cell.frame("work"))
+    x, y = ((work_T_world @ moved)[:2, 3] * 1e3).round(2)
+    assert f"({x:g}, {y:g}," in now.statements[1].replace(".0,", ",")  # MOVES TO above the moved peg

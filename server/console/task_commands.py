@@ -1,0 +1,104 @@
+"""Task-level commands (issue 40): a goal of the cell's task space planned from where the program
+leaves the virtual cell (``shared.tasknet.goals.plan_goal``; the virtual cell itself when the
+program is empty), or one action enabled there; either
+inserts its actions' statements (``shared.tasknet.action_program``, filled from where the virtual
+cell's objects are now) before the selection as one edit, each line marked with the action it
+serves (``task_lines.py``). ``POST /api/task/goal``, ``POST /api/task/action`` and the Task tab's
+goal box and action buttons all come here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from server.console.errors import ConflictError
+from server.console.views import Caller, ProgramView
+from shared.tasknet.action_program import ActionStatements, action_statements
+from shared.tasknet.goals import GoalPlan, enabled_actions, plan_goal, resolve_action
+from shared.tasknet.taskspace import TaskSpace
+
+if TYPE_CHECKING:
+    from server.console.arm import VirtualArm
+    from server.console.context import ConsoleContext
+    from server.console.control import ControlLock
+    from server.console.program_desk import ProgramDesk
+    from server.console.task_monitor import TaskMonitor
+
+
+@dataclass(frozen=True)
+class TaskInsert:
+    """What a task command inserted: the goal's plan (None for one action), each action's
+    statements, and the program after."""
+
+    plan: GoalPlan | None
+    rows: tuple[ActionStatements, ...]
+    program: ProgramView
+
+
+class TaskCommands:
+    """``session.task_commands``."""
+
+    def __init__(self, ctx: ConsoleContext, control: ControlLock, monitor: TaskMonitor, desk: ProgramDesk,
+                 arm: VirtualArm) -> None:
+        self._cell = ctx.cell
+        self._control, self._monitor, self._desk, self._arm = control, monitor, desk, arm
+
+    def _space(self) -> TaskSpace:
+        space = self._monitor.space
+        if space is None:
+            raise ConflictError("this cell has no task model (assets/tasks/<cell>.toml): there are no task actions")
+        return space
+
+    def _where(self, wait: bool = True) -> tuple[frozenset[str], dict] | None:
+        """Where the next task lines start: the marking and the objects' poses where the program
+        as it stands leaves the virtual cell (the virtual cell itself when the program is empty),
+        so an action button after another, or a goal after both, continues from there."""
+        end = self._monitor.program_end(wait)
+        if end is False:
+            return None  # busy, and not to be waited for
+        if end is not None:
+            return end
+        return frozenset(self._monitor.view().virtual_marking), self._arm.object_poses_now()
+
+    def offered(self, wait: bool = True) -> list[str] | None:
+        """The actions enabled where the program leaves the virtual cell, never one that puts an
+        object in two places (what the Task tab offers as buttons); none without a task model;
+        None when not ``wait`` and a play of the task panel is under way (ask again later)."""
+        if self._monitor.space is None:
+            return []
+        where = self._where(wait)
+        return None if where is None else [a.text for a in enabled_actions(self._monitor.space, where[0])]
+
+    def goal(self, goal: list[str] | str, *, keep: bool = True, client: Caller | str | None = None) -> TaskInsert:
+        """Plan ``goal`` from where the program leaves the virtual cell and insert its statements (one undo step); a
+        goal no reachable marking meets is an ``InputError`` naming the atom."""
+        self._control.check(client)  # before the search
+        marking, poses = self._where()
+        plan = plan_goal(self._space(), marking, goal, keep=keep)
+        rows = self._statements(plan.actions, poses)
+        view = self._insert(rows, f"plan {', '.join(plan.goal)}", client)
+        return TaskInsert(plan, rows, view)
+
+    def action(self, text: str, *, client: Caller | str | None = None) -> TaskInsert:
+        """Insert the statements of the action ``text`` (one undo step); one the virtual marking
+        does not enable is refused, naming what does not hold."""
+        self._control.check(client)
+        space = self._space()
+        act = resolve_action(space, text)
+        marking, poses = self._where()
+        if act not in enabled_actions(space, marking):
+            missing = [a for a in act.pre if a not in marking]
+            why = (f"{', '.join(missing)} does not hold" if missing
+                   else "its results hold already, or it would put an object in two places")
+            raise ConflictError(f"{act.text} is not enabled in the virtual cell: {why}")
+        rows = self._statements([act], poses)
+        return TaskInsert(None, rows, self._insert(rows, act.text, client))
+
+    def _statements(self, actions, poses: dict) -> tuple[ActionStatements, ...]:
+        return tuple(action_statements(self._space(), self._cell, actions, poses=poses))
+
+    def _insert(self, rows: tuple[ActionStatements, ...], label: str, client: Caller | str | None) -> ProgramView:
+        if not rows:
+            return self._desk.view()
+        return self._desk.insert_actions([(r.action, r.statements) for r in rows], label, client=client)
