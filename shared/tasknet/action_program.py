@@ -1,5 +1,6 @@
-"""Actions to statements (issue 40): each rule of a task space has a motion template, the
-statements the thesis's own peg transfer (``assets/programs/peg_transfer.tp``) makes for it, and
+"""Actions to statements (issue 40): each rule of a task space has a motion template in its task
+file (``statements``; for the peg cell, the statements the thesis's own peg transfer,
+``assets/programs/peg_transfer.tp``, makes for it), and
 a planned action run becomes a program by filling the templates with the modelled poses of the
 objects and features the actions name.
 
@@ -13,7 +14,9 @@ A template line may hold fields, each ``{what VAR ...}`` over the rule's variabl
 * ``{over p h}``: the tool where ``p``'s foot is ``ABOVE_MOUTH_MM`` over ``h``'s mouth.
 
 Positions are written in mm in the cell's ``work`` frame (the gripper down is ``(180, 0, 0)``
-deg there). Nothing here knows a cell: every number comes from the cell's objects and features.
+deg there). Nothing here knows a cell or a task: every number comes from the cell's objects and
+features, every line from the task file, and an action that adds an atom placing an object at a
+feature seats that object there for the actions after it.
 Each action's statements are preceded by a comment line naming it, so the program shows which
 statements serve which action.
 """
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from shared.errors import InputError
-from shared.tasknet.taskspace import GroundAction, TaskSpace
+from shared.tasknet.taskspace import TEMPLATE_FIELD, GroundAction, TaskSpace, parse_atom
 
 APPROACH_CLEARANCE_MM = 70.0
 GRIP_BELOW_TOP_MM = 15.0
@@ -35,32 +38,6 @@ ABOVE_MOUTH_MM = 20.0
 SEAT_MATCH_MM = 1.0
 """An object whose axis is within this of a feature's axis at load stands in that feature."""
 
-TEMPLATES: dict[str, tuple[str, ...]] = {
-    "grasp": (
-        "SPEED 50 %",
-        "MOVES TO {above p} (180, 0, 0) deg IN WORK",
-        "DRAW TO {grip p} IN WORK WITH SPEED 10 mm/s UNTIL CONTACT",
-        "TASK grasp({obj p})",
-    ),
-    "part": (
-        "TASK extract_peg({obj p}, {feat h})",
-        "DRAW TO {carry h} IN WORK WITH SPEED 30 mm/s",
-    ),
-    "mate": (
-        "DRAW TO {carry h} IN WORK",
-        "DRAW TO {over p h} IN WORK WITH SPEED 10 mm/s",
-        "MODE FORCE",
-        "TASK insert_peg({obj p}, {feat h})",
-    ),
-    "release": (
-        "TASK release()",
-        "MODE POSITION",
-    ),
-}
-"""Rule name -> statement templates (approach, guarded descent, grasp; extract; move over,
-insert with force; release), as ``peg_transfer.tp`` states them."""
-
-_FIELD = re.compile(r"\{(\w+)((?:\s+\w+)+)\}")
 
 
 @dataclass(frozen=True)
@@ -128,11 +105,18 @@ class _Scene:
             return _mm(m + [0.0, 0.0, ABOVE_MOUTH_MM + foot_below_grip])
         raise InputError(f"template field {{{what} ...}} is not one of obj, feat, above, grip, carry, over")
 
-    def after(self, rule: str, names: list[str]) -> None:
-        """Move the modelled object as the action does: a mate seats it in the feature."""
-        if rule == "mate" and len(names) == 2 and names[0] in self.pos:
-            o, m = names[0], self.mouth(names[1])
-            self.pos[o] = m + self.seat.get(o, np.array([0.0, 0.0, self.length[o] / 2.0]))
+    def after(self, space: TaskSpace, act: GroundAction) -> None:
+        """Move the modelled objects as the action does: an atom it adds that places an object at
+        a feature (``PEGINHOLE(PEG, HOLE2)``: one argument bound to a cell object, one to a cell
+        feature) seats the object in that feature, as it stood in its feature at load."""
+        inds = space.spec.individuals
+        for atom in act.add:
+            _, args = parse_atom(atom)
+            objects = [inds[a].object for a in args if a in inds and inds[a].object]
+            features = [inds[a].feature for a in args if a in inds and inds[a].feature]
+            if len(args) == 2 and len(objects) == 1 and len(features) == 1 and objects[0] in self.pos:
+                o, m = objects[0], self.mouth(features[0])
+                self.pos[o] = m + self.seat.get(o, np.array([0.0, 0.0, self.length[o] / 2.0]))
 
 
 def _cell_name(space: TaskSpace, individual: str) -> str:
@@ -145,13 +129,13 @@ def action_statements(space: TaskSpace, cell, actions: list[GroundAction] | tupl
                       poses: Mapping[str, np.ndarray] | None = None) -> list[ActionStatements]:
     """The statements of each action, filled from the objects' modelled poses in order: where
     ``poses`` has them (the virtual cell's, world_T_object by name), else as the cell loads them."""
-    table = TEMPLATES if templates is None else templates
+    table = {r.name: tuple(r.statements) for r in space.spec.rules if r.statements} if templates is None else templates
     scene = _Scene(cell, poses)
     out = []
     for act in actions:
         if act.rule not in table:
-            raise InputError(f"action {act.text}: the rule {act.rule!r} has no motion template "
-                             f"(templates: {', '.join(table)})")
+            raise InputError(f"action {act.text}: the rule {act.rule!r} has no statements in the task file "
+                             f"{space.spec.name!r} (rules with statements: {', '.join(table) or 'none'})")
         rule = next(r for r in space.spec.rules if r.name == act.rule)
         binding = {var: _cell_name(space, ind) for var, ind in zip(rule.params, act.args)}
 
@@ -163,8 +147,8 @@ def action_statements(space: TaskSpace, cell, actions: list[GroundAction] | tupl
                 names.append(binding[var])
             return scene.field(m.group(1), names)
 
-        out.append(ActionStatements(act.text, tuple(_FIELD.sub(fill, line) for line in table[act.rule])))
-        scene.after(act.rule, [binding[v] for v in rule.params])
+        out.append(ActionStatements(act.text, tuple(TEMPLATE_FIELD.sub(fill, line) for line in table[act.rule])))
+        scene.after(space, act)
     return out
 
 

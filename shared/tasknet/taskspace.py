@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from shared.errors import FileFormatError, InputError
 from shared.tasknet.ptnet import Arc, Place, PTNet, Transition
@@ -87,6 +87,14 @@ class PredicateSpec(BaseModel):
     absent: list[tuple[str, str]] = []
 
 
+TEMPLATE_FIELD = re.compile(r"\{(\w+)((?:\s+\w+)+)\}")
+"""A field of a rule's statements: ``{what VAR ...}``."""
+TEMPLATE_FIELDS = ("obj", "feat", "above", "grip", "carry", "over")
+"""What a field may ask for (``shared.tasknet.action_program``): the object's or the feature's
+cell name, the approach over an object, the grip on it, the carry height over a feature, an
+object held over a feature's mouth."""
+
+
 class RuleSpec(BaseModel):
     """An F-rule: an action over typed variables with its PRE, DEL and ADD lists."""
 
@@ -96,6 +104,10 @@ class RuleSpec(BaseModel):
     pre: list[str] = []
     delete: list[str] = Field(default=[], alias="del")
     add: list[str] = []
+    statements: list[str] = []
+    """The action's motion template (task-level commands): statement lines whose fields, such as
+    ``{above p}`` or ``{over p h}``, are filled from the modelled poses of what the variables name
+    (``shared.tasknet.action_program``)."""
 
     @field_validator("pre", "delete", "add")
     @classmethod
@@ -103,6 +115,19 @@ class RuleSpec(BaseModel):
         for text in v:
             parse_atom(text)
         return v
+
+    @model_validator(mode="after")
+    def _template_fields(self) -> "RuleSpec":
+        for line in self.statements:
+            for what, names in TEMPLATE_FIELD.findall(line):
+                if what not in TEMPLATE_FIELDS:
+                    raise ValueError(f"rule {self.name}: statement {line!r}: {{{what} ...}} is not one of "
+                                     f"{', '.join(TEMPLATE_FIELDS)}")
+                unknown = [n for n in names.split() if n not in self.params]
+                if unknown:
+                    raise ValueError(f"rule {self.name}: statement {line!r} names {', '.join(unknown)}, "
+                                     f"not a variable of the rule ({', '.join(self.params) or 'none'})")
+        return self
 
 
 class TaskSpaceSpec(BaseModel):

@@ -16,7 +16,7 @@ from shared.cells.loader import load_cell
 from shared.errors import InputError
 from shared.language.parser import parse_file, parse_program
 from shared.motion.plan_check import plan_or_refuse
-from shared.tasknet.action_program import TEMPLATES, action_statements, cell_marking, program_text
+from shared.tasknet.action_program import action_statements, cell_marking, program_text
 from shared.tasknet.goals import parse_goal, plan_goal
 from shared.tasknet.playback import recognise_program
 from shared.tasknet.taskspace import load_task_space
@@ -103,7 +103,7 @@ def test_the_statements_come_from_the_modelled_poses(space, cell, transfer) -> N
     assert ours == thesis
     # each action's statements follow a comment naming it
     assert [ln[len("# action "):] for ln in text.splitlines() if ln.startswith("# action ")] == TRANSFER
-    assert set(TEMPLATES) >= {r.name for r in space.spec.rules}
+    assert all(r.statements for r in space.spec.rules)  # every rule's template is in the task file
 
 
 def test_the_statements_follow_the_cell_not_constants(space, tmp_path) -> None:
@@ -171,3 +171,15 @@ def test_an_actions_statements_start_from_where_the_objects_are_now(cell, space)
     work_T_world = np.linalg.inv(cell.frame("work"))
     x, y = ((work_T_world @ moved)[:2, 3] * 1e3).round(2)
     assert f"({x:g}, {y:g}," in now.statements[1].replace(".0,", ",")  # MOVES TO above the moved peg
+
+
+def test_a_rule_template_that_names_an_unknown_field_or_variable_is_refused_at_load(tmp_path) -> None:
+    from shared.errors import FileFormatError
+
+    text = (ROOT / "assets" / "tasks" / "peg_in_hole.toml").read_text()
+    for bad, says in (('"TASK grasp({obj p})"', "{obj q}"), ('"TASK grasp({obj p})"', "{lift p}")):
+        path = tmp_path / "bad.toml"
+        path.write_text(text.replace(bad, f'"TASK grasp({says})"', 1))
+        with pytest.raises(FileFormatError, match="rule grasp") as caught:
+            load_task_space(path)
+        assert str(path) in str(caught.value) and ("q" in str(caught.value) or "lift" in str(caught.value))
