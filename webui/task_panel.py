@@ -92,11 +92,12 @@ NET_LABEL_PX = 12  # the net's SVG labels (``shared.tasknet.layout``) at its nat
 MIN_LABEL_PX = 11  # the smallest the page may draw them
 
 
-def net_picture(net: PTNet, true_atoms: list[str]) -> str:
-    """The net as SVG, marked where ``true_atoms`` hold, scaled to the panel's width."""
+def net_picture(net: PTNet, true_atoms: list[str], planned: list[str] | None = None) -> str:
+    """The net as SVG, marked where ``true_atoms`` hold, the ``planned`` path of actions (the
+    program's task lines) drawn in blue and numbered, scaled to the panel's width."""
     marked = set(true_atoms)
     m = np.array([1 if p.predicate in marked else 0 for p in net.places], dtype=np.int64)
-    svg = net_to_svg(net, m)
+    svg = net_to_svg(net, m, planned or ())
     natural = float(re.search(r'<svg [^>]*?width="([\d.]+)"', svg).group(1))
     # as wide as the panel, but never so small that its 12 px labels read under MIN_LABEL_PX: a
     # wide net scrolls sideways instead (scaled to a 400 px panel, a 1,200 px net's labels were 4 px)
@@ -123,6 +124,8 @@ class TaskPanel:
         self._gui = gui
         self._buttons: dict[str, viser.GuiButtonHandle] = {}
         self._offered_for: tuple | None = None  # (the program's state, the virtual marking) the buttons show
+        self._planned: list[str] = []  # the actions the program's task lines serve: the net's planned path
+        self._view: TaskView | None = None
         self.commands = None
         if session.task.available:
             view = session.task.view()
@@ -174,6 +177,13 @@ class TaskPanel:
         if offered is None:
             return  # a play is under way: the next event asks again
         self._offered_for = key
+        planned = self.session.program.planned_actions()
+        if planned != self._planned:
+            self._planned = planned
+            if self._view is not None and (net := self._net(self._view)) is not None:  # the path redrawn
+                v = self._view
+                self.block.content = task_html(v, net_picture(net, v.preview_marking if v.preview_active else v.virtual_marking,
+                                                              planned))
         if list(self._buttons) == offered:
             return
         for button in self._buttons.values():
@@ -195,9 +205,11 @@ class TaskPanel:
 
     def show(self, view: TaskView) -> None:
         net = self._net(view)
-        picture = "" if net is None else net_picture(net, view.preview_marking if view.preview_active else view.virtual_marking)
-        self.block.content = task_html(view, picture)
+        self._view = view
         self.sync_commands()
+        picture = "" if net is None else net_picture(net, view.preview_marking if view.preview_active else view.virtual_marking,
+                                                     self._planned)
+        self.block.content = task_html(view, picture)
 
     def _save(self, event: viser.GuiEvent, kind: str) -> None:
         net = self.session.task.generated_net()

@@ -59,6 +59,16 @@ class TaskLines:
                     self._task_lines.pop(id(statement), None)
                 raise
 
+    def planned_actions(self) -> list[str]:
+        """The actions the program's task lines serve, in program order (each run of lines once)."""
+        with self._ctx.lock:
+            out: list[str] = []
+            for statement in self._editor.state.statements:
+                kept = self._task_lines.get(id(statement))
+                if kept is not None and kept[0] is statement and (not out or out[-1] != kept[1]):
+                    out.append(kept[1])
+            return out
+
     def _task_marks(self) -> dict[int, dict]:
         """The program view's fields of the task lines, by ``id`` of their statement."""
         return {key: {"action": action} for key, (_, action) in self._task_lines.items()}

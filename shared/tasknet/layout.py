@@ -10,6 +10,8 @@ predicate or action under them when there is one.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from collections import deque
 from dataclasses import dataclass
 from html import escape
@@ -58,8 +60,17 @@ def layered_positions(net: PTNet) -> dict[str, tuple[float, float]]:
     return pos
 
 
-def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
-    """An SVG document of ``net`` showing ``marking`` (M0 when None); marked places are shaded."""
+PLANNED_FILL = "#1e88e5"
+"""The transitions of a planned path (``net_to_svg``'s ``planned``)."""
+
+
+def net_to_svg(net: PTNet, marking: np.ndarray | None = None, planned: Sequence[str] = ()) -> str:
+    """An SVG document of ``net`` showing ``marking`` (M0 when None); marked places are shaded.
+    ``planned``: a path of actions (transition labels) in order; their transitions are drawn in
+    blue and numbered in the order the path takes them."""
+    step = {}
+    for k, action in enumerate(planned, start=1):
+        step.setdefault(action, k)
     m = net.m0 if marking is None else net.marking(marking)
     pos = layered_positions(net)
     width, height = canvas_size(pos)
@@ -99,10 +110,13 @@ def net_to_svg(net: PTNet, marking: np.ndarray | None = None) -> str:
         )
     for t in net.transitions:
         x, y = pos[t.id]
+        k = step.get(t.action) if t.action else None
         out.append(
-            f'<g class="transition" data-id="{escape(t.id)}">'
-            f'<rect x="{x - BAR_W / 2:.1f}" y="{y - BAR_H / 2:.1f}" width="{BAR_W}" height="{BAR_H}" fill="#333"/>'
-            f'<text x="{x:.1f}" y="{y - BAR_H / 2 - 6:.1f}" text-anchor="middle">{escape(t.id)}</text>'
+            f'<g class="transition" data-id="{escape(t.id)}"' + (f' data-planned="{k}"' if k else "") + ">"
+            f'<rect x="{x - BAR_W / 2:.1f}" y="{y - BAR_H / 2:.1f}" width="{BAR_W}" height="{BAR_H}" '
+            f'fill="{PLANNED_FILL if k else "#333"}"/>'
+            f'<text x="{x:.1f}" y="{y - BAR_H / 2 - 6:.1f}" text-anchor="middle">{escape(t.id)}'
+            + (f" ({k})" if k else "") + "</text>"
             + _label(x, y + BAR_H / 2 + 14, t.action)
             + "</g>"
         )

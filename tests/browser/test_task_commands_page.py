@@ -1,7 +1,8 @@
 """Task-level commands from the page (issue 40), in headless Chromium with mouse and keyboard:
 on the Task tab the operator clicks the action button ``grasp(PEG)``, types the goal
 ``PEGINHOLE(PEG,HOLE2), HANDEEMPTY`` into the goal box and clicks Plan goal; the program then
-holds the transfer, each line marked with its action. In the quasi-operation regime, "Preview and
+holds the transfer, each line marked with its action, and the Task tab's net shows the planned
+path, its transitions numbered in order. In the quasi-operation regime, "Preview and
 submit" previews it and sends it over the 200 ms link to the telerobot on contact physics, and the
 robot's marking reaches the goal: the peg in HOLE2, the hand empty. The session is read through
 GET requests only, to check what the page did.
@@ -68,6 +69,13 @@ def test_an_action_button_and_a_goal_plan_the_transfer_and_the_robot_reaches_the
     ui.click("Plan goal")
     wait_for(lambda: list(dict.fromkeys(_actions(ui))) == TRANSFER, what=f"the goal's plan (notice {ui.notice()!r})")
     lines = len(_actions(ui))
+    # the net picture shows the planned path: the transitions of the program's actions, numbered in order
+    planned = ui.page.locator("[data-task-net] svg g.transition[data-planned]")
+    wait_for(lambda: planned.count() == len(TRANSFER), what="the planned path drawn on the net")
+    steps = ui.page.eval_on_selector_all(
+        "[data-task-net] svg g.transition[data-planned]",
+        "els => els.map(e => [Number(e.dataset.planned), e.querySelector('text.label').textContent])")
+    assert [action for _, action in sorted(steps)] == TRANSFER
 
     ui.tab("Preview")
     _choose(ui, "Preview speed", "10x")
