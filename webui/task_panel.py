@@ -156,8 +156,11 @@ class TaskPanel:
             return
         done = self.actions.run("plan goal", lambda: self.session.task_commands.goal(goal, client=None))
         if done is not None and done.plan is not None:
-            self.actions.show_notice("info", f"inserted {', '.join(done.plan.action_texts) or 'nothing (the goal holds)'} "
-                                     f"({sum(len(r.statements) for r in done.rows)} statements)", None)
+            inserted = [r.action for r in done.rows]
+            later = (f"; {', '.join(done.deferred)} after the robot reports the insertion (plan the goal again then)"
+                     if done.deferred else "")
+            self.actions.show_notice("info", f"inserted {', '.join(inserted) or 'nothing (the goal holds)'} "
+                                     f"({sum(len(r.statements) for r in done.rows)} statements){later}", None)
 
     def _take_action(self, text: str) -> None:
         done = self.actions.run("task action", lambda: self.session.task_commands.action(text, client=None))

@@ -39,6 +39,8 @@ class GoalOut(BaseModel):
     statements: list[GoalActionOut]
     states_visited: int
     final_marking: list[str]
+    deferred: list[str] = Field(default_factory=list, description="actions of the plan not inserted: they would move "
+                                "the arm after a task whose end only the robot knows; plan the goal again once it reports")
     program: ProgramView
 
 
@@ -75,7 +77,8 @@ def task_goal(body: GoalIn, session: SessionDep, client: ClientDep) -> GoalOut:
     plan = done.plan
     return GoalOut(goal=list(plan.goal), actions=plan.action_texts,
                    statements=[GoalActionOut(action=r.action, statements=list(r.statements)) for r in done.rows],
-                   states_visited=plan.states_visited, final_marking=list(plan.final), program=done.program)
+                   states_visited=plan.states_visited, final_marking=list(plan.final), deferred=list(done.deferred),
+                   program=done.program)
 
 
 @router.post("/task/action", response_model=ActionOut)

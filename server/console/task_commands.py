@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 from server.console.errors import ConflictError
 from server.console.views import Caller, ProgramView
+from shared.language.parser import parse_statement
+from shared.language.task_rule import may_follow, pose_after
 from shared.tasknet.action_program import ActionStatements, action_statements
 from shared.tasknet.goals import GoalPlan, enabled_actions, plan_goal, resolve_action
 from shared.tasknet.taskspace import TaskSpace
@@ -34,6 +36,9 @@ class TaskInsert:
     plan: GoalPlan | None
     rows: tuple[ActionStatements, ...]
     program: ProgramView
+    deferred: tuple[str, ...] = ()
+    """The plan's actions not inserted: they would move the arm after a task whose end only the
+    robot knows (``shared.language.task_rule``); plan the goal again once it reports."""
 
 
 class TaskCommands:
@@ -76,9 +81,9 @@ class TaskCommands:
         self._control.check(client)  # before the search
         marking, poses = self._where()
         plan = plan_goal(self._space(), marking, goal, keep=keep)
-        rows = self._statements(plan.actions, poses)
+        rows, deferred = _until_unknown_end(self._statements(plan.actions, poses), self._desk.state.unknown_pose)
         view = self._insert(rows, f"plan {', '.join(plan.goal)}", client)
-        return TaskInsert(plan, rows, view)
+        return TaskInsert(plan, rows, view, deferred)
 
     def action(self, text: str, *, client: Caller | str | None = None) -> TaskInsert:
         """Insert the statements of the action ``text`` (one undo step); one the virtual marking
@@ -102,3 +107,17 @@ class TaskCommands:
         if not rows:
             return self._desk.view()
         return self._desk.insert_actions([(r.action, r.statements) for r in rows], label, client=client)
+
+
+def _until_unknown_end(rows: tuple[ActionStatements, ...], unknown) -> tuple[tuple[ActionStatements, ...], tuple[str, ...]]:
+    """The rows a program may hold in one piece, from a program whose pose is ``unknown`` after
+    one of its tasks (None: known): every row whose statements may follow what comes before
+    them (a motion may not follow an insertion only the robot's report ends), and the actions
+    of the rows left out."""
+    for k, row in enumerate(rows):
+        for text in row.statements:
+            statement = parse_statement(text)
+            if not may_follow(statement, unknown):
+                return rows[:k], tuple(r.action for r in rows[k:])
+            unknown = pose_after(statement, 0, unknown)
+    return rows, ()

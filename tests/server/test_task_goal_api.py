@@ -100,3 +100,22 @@ def test_task_commands_continue_from_where_the_program_leaves_the_cell() -> None
         task = client.get("/api/task").json()
         assert [a["action"] for a in task["preview_actions"]] == TRANSFER
         assert "PEGINHOLE(PEG,HOLE2)" in task["preview_marking"] and "HANDEEMPTY" in task["preview_marking"]
+
+
+def test_the_second_task_space_plans_through_the_api_up_to_what_the_robot_must_report() -> None:
+    """The two-peg cell: PEGB into HOLE1 needs PEGA moved out first. The first transfer goes in;
+    what would move the arm after its insertion waits for the robot's report and is named."""
+    from shared.paths import ASSETS_DIR
+
+    settings = ConsoleSettings(no_robot=True, cell=ASSETS_DIR / "cells" / "two_pegs.toml")
+    with TestClient(create_app(settings, build_page=False)) as client:
+        offered = client.get("/api/task/actions").json()["enabled"]
+        assert offered == ["grasp(PEGA)", "grasp(PEGB)"]
+        r = client.post("/api/task/goal", json={"goal": ["PEGINHOLE(PEGB,HOLE1)", "HANDEEMPTY"], "keep": False})
+        assert r.status_code == 200, r.text
+        data = r.json()
+        first = ["grasp(PEGA)", "part(PEGA,HOLE1)", "mate(PEGA,HOLE3)", "release(PEGA,HOLE3)"]
+        assert data["actions"][:4] == first and [row["action"] for row in data["statements"]] == first
+        assert data["deferred"] == ["grasp(PEGB)", "part(PEGB,HOLE2)", "mate(PEGB,HOLE1)", "release(PEGB,HOLE1)"]
+        assert list(dict.fromkeys(e["action"] for e in _program(client))) == first
+        assert "TASK grasp(peg_a)" in [e["text"] for e in _program(client)]

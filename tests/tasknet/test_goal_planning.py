@@ -13,12 +13,14 @@ import numpy as np
 import pytest
 
 from shared.cells.loader import load_cell
+from shared.cells.object_world import ObjectWorld
 from shared.errors import InputError
 from shared.language.parser import parse_file, parse_program
+from shared.motion.frames import CellFrames
 from shared.motion.plan_check import plan_or_refuse
 from shared.tasknet.action_program import action_statements, cell_marking, program_text
 from shared.tasknet.goals import parse_goal, plan_goal
-from shared.tasknet.playback import recognise_program
+from shared.tasknet.playback import PrefixRecognition, recognise_program
 from shared.tasknet.taskspace import load_task_space
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -183,3 +185,41 @@ def test_a_rule_template_that_names_an_unknown_field_or_variable_is_refused_at_l
         with pytest.raises(FileFormatError, match="rule grasp") as caught:
             load_task_space(path)
         assert str(path) in str(caught.value) and ("q" in str(caught.value) or "lift" in str(caught.value))
+
+
+SWAP = ["grasp(PEGA)", "part(PEGA,HOLE1)", "mate(PEGA,HOLE3)", "release(PEGA,HOLE3)",
+        "grasp(PEGB)", "part(PEGB,HOLE2)", "mate(PEGB,HOLE1)", "release(PEGB,HOLE1)"]
+
+
+@pytest.mark.parametrize("goal, keep, actions", [
+    ("PEGINHOLE(PEGA,HOLE3)", True, ["grasp(PEGA)", "part(PEGA,HOLE1)", "mate(PEGA,HOLE3)", "release(PEGA,HOLE3)"]),
+    # HOLE1 holds PEGA: the plan first takes PEGA to the only free hole (the hand lets go only in a
+    # hole here), then brings PEGB
+    ("PEGINHOLE(PEGB,HOLE1), HANDEEMPTY", False, SWAP),
+    # keeping what the goal does not change (HOLE3 empty): PEGA ends in the hole PEGB left
+    ("PEGINHOLE(PEGB,HOLE1), HANDEEMPTY", True,
+     [*SWAP, "grasp(PEGA)", "part(PEGA,HOLE3)", "mate(PEGA,HOLE2)", "release(PEGA,HOLE2)"]),
+])
+def test_the_second_task_space_plans_goals_that_play_as_their_actions(goal, keep, actions) -> None:
+    """The two-peg cell (issue 40: a second task space, nothing of it in code): the plan, its
+    program from the templates in its task file, and the program played on the virtual cell
+    recognised as the planned actions."""
+    cell = load_cell(ROOT / "assets" / "cells" / "two_pegs.toml")
+    space = load_task_space(ROOT / "assets" / "tasks" / "two_pegs.toml")
+    start = cell_marking(space, cell)
+    assert start == {"HANDEEMPTY", "PEGFREE(PEGA)", "PEGFREE(PEGB)", "PEGINHOLE(PEGA,HOLE1)", "PEGINHOLE(PEGB,HOLE2)",
+                     "HOLEEMPTY(HOLE3)"}
+    plan = plan_goal(space, start, goal, keep=keep)
+    assert plan.action_texts == actions
+    # one transfer per program: what follows an insertion waits for the robot's report of it; each
+    # transfer is played from where the one before left the cell (its objects and the arm)
+    world, q, marking = ObjectWorld(cell), cell.q_home.copy(), None
+    for first in range(0, len(actions), 4):
+        chunk = plan.actions[first:first + 4]
+        poses = world.poses(CellFrames.from_cell(cell).world_T_tcp(cell.robot, q))
+        program = parse_program(program_text(action_statements(space, cell, chunk, poses=poses))).statements
+        kept = PrefixRecognition(cell, space, q, world)
+        recognised = kept.recognise(program)
+        assert [a.action for a in recognised.actions] == [a.text for a in chunk]
+        world, q, marking = kept.world_at_end(), kept.q_end, recognised.final_marking
+    assert set(parse_goal(space, goal)) <= set(marking)

@@ -23,7 +23,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
     cell = load_cell(args.cell)
     space = cell_task_space(cell, args.task)
-    goal = [g for text in args.goal for g in text.split(";")]
+    goal = "; ".join(args.goal)  # atoms separated by ';' or by commas outside parentheses (parse_goal)
     plan = plan_goal(space, cell_marking(space, cell), goal, keep=not args.exact)
     rows = action_statements(space, cell, plan.actions)
     program = program_text(rows)
