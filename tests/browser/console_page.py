@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 import time
 
+from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import Locator, Page
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
@@ -120,6 +121,21 @@ class ConsolePage:
             target.click(force=True)
         else:
             target.click()
+
+    def click_program_line(self, index: int, shift: bool = False, timeout: float = PAGE_WAIT_S) -> None:
+        """A mouse click on the program list's line of entry ``index`` (Shift held: a range). The
+        list is one HTML block the page draws anew on every program change, so a line found
+        visible can be replaced before the click lands ("not visible", "detached"): the click is
+        made again on the line drawn then, which the first never reached."""
+        target = self.page.locator(f'[data-program-list] [data-stmt-index="{index}"]')
+        for attempt in range(3):
+            target.wait_for(state="visible", timeout=timeout * 1000)
+            try:
+                target.click(force=True, modifiers=["Shift"] if shift else None, timeout=timeout * 1000)
+                return
+            except PlaywrightError as exc:
+                if attempt == 2 or not ("not visible" in str(exc) or "detached" in str(exc)):
+                    raise
 
     def tab(self, name: str) -> None:
         tab = self.page.get_by_role("tab", name=name)

@@ -88,9 +88,7 @@ def load(ui: ConsolePage, *lines: str) -> None:
 
 
 def click_line(ui: ConsolePage, index: int) -> None:
-    target = ui.page.locator(f'{LIST} [data-stmt-index="{index}"]')
-    target.wait_for(state="visible", timeout=PAGE_S * 1000)
-    target.click(force=True)
+    ui.click_program_line(index, timeout=PAGE_S)
 
 
 def selected_is(ui: ConsolePage, index: int) -> None:

@@ -101,9 +101,7 @@ def line(ui: ConsolePage, index: int):
 
 def click_line(ui: ConsolePage, index: int, shift: bool = False) -> None:
     """A mouse click on a line (with Shift held for a range); see ``ConsolePage.quick_clicks``."""
-    target = line(ui, index)
-    target.wait_for(state="visible", timeout=PAGE_S * 1000)
-    target.click(force=True, modifiers=["Shift"] if shift else None)
+    ui.click_program_line(index, shift, timeout=PAGE_S)
 
 
 def selected_lines(ui: ConsolePage) -> list[int]:
