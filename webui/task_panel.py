@@ -159,13 +159,17 @@ class TaskPanel:
             inserted = [r.action for r in done.rows]
             later = (f"; {', '.join(done.deferred)} after the robot reports the insertion (plan the goal again then)"
                      if done.deferred else "")
-            self.actions.show_notice("info", f"inserted {', '.join(inserted) or 'nothing (the goal holds)'} "
-                                     f"({sum(len(r.statements) for r in done.rows)} statements){later}", None)
+            self.actions.show_notice("warning" if done.warnings else "info",
+                                     f"inserted {', '.join(inserted) or 'nothing (the goal holds)'} "
+                                     f"({sum(len(r.statements) for r in done.rows)} statements){later}"
+                                     + (f"; the preview's check: {'; '.join(done.warnings)}" if done.warnings else ""), None)
 
     def _take_action(self, text: str) -> None:
         done = self.actions.run("task action", lambda: self.session.task_commands.action(text, client=None))
         if done is not None:
-            self.actions.show_notice("info", f"inserted {text} ({len(done.rows[0].statements)} statements)", None)
+            self.actions.show_notice("warning" if done.warnings else "info",
+                                     f"inserted {text} ({len(done.rows[0].statements)} statements)"
+                                     + (f"; the preview's check: {'; '.join(done.warnings)}" if done.warnings else ""), None)
 
     def sync_commands(self) -> None:
         """One button per action enabled where the program leaves the virtual cell, in the task

@@ -41,12 +41,15 @@ class GoalOut(BaseModel):
     final_marking: list[str]
     deferred: list[str] = Field(default_factory=list, description="actions of the plan not inserted: they would move "
                                 "the arm after a task whose end only the robot knows; plan the goal again once it reports")
+    warnings: list[str] = Field(default_factory=list, description="what the preview's check finds on the inserted lines "
+                                "(collision, joint limits, a refused plan), each naming its line")
     program: ProgramView
 
 
 class ActionOut(BaseModel):
     action: str
     statements: list[str]
+    warnings: list[str] = Field(default_factory=list, description="as GoalOut's")
     program: ProgramView
 
 
@@ -78,7 +81,7 @@ def task_goal(body: GoalIn, session: SessionDep, client: ClientDep) -> GoalOut:
     return GoalOut(goal=list(plan.goal), actions=plan.action_texts,
                    statements=[GoalActionOut(action=r.action, statements=list(r.statements)) for r in done.rows],
                    states_visited=plan.states_visited, final_marking=list(plan.final), deferred=list(done.deferred),
-                   program=done.program)
+                   warnings=list(done.warnings), program=done.program)
 
 
 @router.post("/task/action", response_model=ActionOut)
@@ -89,4 +92,5 @@ def task_action(body: ActionIn, session: SessionDep, client: ClientDep) -> Actio
     _space(session)
     done = session.task_commands.action(body.action, client=client)
     (row,) = done.rows
-    return ActionOut(action=row.action, statements=list(row.statements), program=done.program)
+    return ActionOut(action=row.action, statements=list(row.statements), warnings=list(done.warnings),
+                     program=done.program)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from server.console.errors import ConflictError
+from server.console.statement_checks import statement_text
+from shared.errors import TeleprogError
 from server.console.views import Caller, ProgramView
 from shared.language.parser import parse_statement
 from shared.language.task_rule import may_follow, pose_after
@@ -39,6 +41,9 @@ class TaskInsert:
     deferred: tuple[str, ...] = ()
     """The plan's actions not inserted: they would move the arm after a task whose end only the
     robot knows (``shared.language.task_rule``); plan the goal again once it reports."""
+    warnings: tuple[str, ...] = ()
+    """What the preview's check finds on the inserted lines (planned with the console's planner:
+    the arm touching something, a joint out of range, a refused plan), each naming its line."""
 
 
 class TaskCommands:
@@ -46,7 +51,7 @@ class TaskCommands:
 
     def __init__(self, ctx: ConsoleContext, control: ControlLock, monitor: TaskMonitor, desk: ProgramDesk,
                  arm: VirtualArm) -> None:
-        self._cell = ctx.cell
+        self._ctx, self._cell = ctx, ctx.cell
         self._control, self._monitor, self._desk, self._arm = control, monitor, desk, arm
 
     def _space(self) -> TaskSpace:
@@ -82,8 +87,8 @@ class TaskCommands:
         marking, poses = self._where()
         plan = plan_goal(self._space(), marking, goal, keep=keep)
         rows, deferred = _until_unknown_end(self._statements(plan.actions, poses), self._desk.state.unknown_pose)
-        view = self._insert(rows, f"plan {', '.join(plan.goal)}", client)
-        return TaskInsert(plan, rows, view, deferred)
+        view, warnings = self._insert(rows, f"plan {', '.join(plan.goal)}", client)
+        return TaskInsert(plan, rows, view, deferred, warnings)
 
     def action(self, text: str, *, client: Caller | str | None = None) -> TaskInsert:
         """Insert the statements of the action ``text`` (one undo step); one the virtual marking
@@ -98,15 +103,28 @@ class TaskCommands:
                    else "its results hold already, or it would put an object in two places")
             raise ConflictError(f"{act.text} is not enabled in the virtual cell: {why}")
         rows = self._statements([act], poses)
-        return TaskInsert(None, rows, self._insert(rows, act.text, client))
+        view, warnings = self._insert(rows, act.text, client)
+        return TaskInsert(None, rows, view, warnings=warnings)
 
     def _statements(self, actions, poses: dict) -> tuple[ActionStatements, ...]:
         return tuple(action_statements(self._space(), self._cell, actions, poses=poses))
 
-    def _insert(self, rows: tuple[ActionStatements, ...], label: str, client: Caller | str | None) -> ProgramView:
+    def _insert(self, rows: tuple[ActionStatements, ...], label: str,
+                client: Caller | str | None) -> tuple[ProgramView, tuple[str, ...]]:
+        """Insert the rows (one edit), then check the inserted lines as a preview checks them."""
         if not rows:
-            return self._desk.view()
-        return self._desk.insert_actions([(r.action, r.statements) for r in rows], label, client=client)
+            return self._desk.view(), ()
+        view = self._desk.insert_actions([(r.action, r.statements) for r in rows], label, client=client)
+        count = sum(len(r.statements) for r in rows)
+        at = view.selected - count  # they went in before the selection, which stays on its statement
+        with self._ctx.lock:
+            try:
+                found = self._desk.preview.path_not_clear(at, at + count) if self._desk.preview is not None else {}
+            except TeleprogError as exc:  # the start is the robot's to report, or the planner failed on it
+                found = {at: f"not checked: {exc}"}
+            statements = self._desk.state.statements
+        warnings = tuple(f"statement {i + 1} ({statement_text(statements[i])}): {why}" for i, why in sorted(found.items()))
+        return view, warnings
 
 
 def _until_unknown_end(rows: tuple[ActionStatements, ...], unknown) -> tuple[tuple[ActionStatements, ...], tuple[str, ...]]:

@@ -3,6 +3,7 @@ marking, its statements inserted into the program as ordinary lines."""
 
 from __future__ import annotations
 
+import numpy as np
 from fastapi.testclient import TestClient
 
 from server.app import create_app
@@ -119,3 +120,23 @@ def test_the_second_task_space_plans_through_the_api_up_to_what_the_robot_must_r
         assert data["deferred"] == ["grasp(PEGB)", "part(PEGB,HOLE2)", "mate(PEGB,HOLE1)", "release(PEGB,HOLE1)"]
         assert list(dict.fromkeys(e["action"] for e in _program(client))) == first
         assert "TASK grasp(peg_a)" in [e["text"] for e in _program(client)]
+
+
+def test_the_inserted_lines_are_checked_as_a_preview_checks_them() -> None:
+    """A plan whose statements the preview's check finds fault with says so, naming the line: the
+    virtual peg moved where the approach drives the fingers into the plate."""
+    with TestClient(create_app(ConsoleSettings(no_robot=True), build_page=False)) as client:
+        clean = client.post("/api/task/goal", json={"goal": ["PEGINHOLE(PEG,HOLE2)", "HANDEEMPTY"]}).json()
+        assert clean["warnings"] == []
+        client.post("/api/program/undo")
+        session = client.app.state.console.session
+        # the peg modelled sunk 60 mm into the plate beside HOLE1: the grip descends into the plate
+        peg = next(o for o in session.cell.objects if o.name == "peg")
+        sunk = np.array(peg.world_T_object, dtype=float)
+        sunk[:3, 3] += [0.0, 0.04, -0.06]
+        session.arm.objects.placed["peg"] = sunk  # the virtual cell's object world, as a re-located peg would be
+        r = client.post("/api/task/action", json={"action": "grasp(PEG)"})
+        assert r.status_code == 200, r.text
+        warnings = r.json()["warnings"]
+        assert warnings and all(w.startswith("statement ") for w in warnings), warnings
+        assert any("plate" in w or "table" in w for w in warnings), warnings
