@@ -162,6 +162,15 @@ class ConsolePage:
         self.press(self.row(label).locator("input").first)
         self.page.get_by_role("option", name=option_name(label, option), exact=exact).first.click()  # it slides open: wait
 
+    def choose_when_shown(self, label: str, option: str) -> None:
+        """:meth:`choose` for a dropdown whose open list is never "stable" for Playwright's wait
+        (the header's lines change 4 times a second): the option is clicked once it is visible."""
+        self.press(self.row(label).locator("input").first)
+        item = self.page.get_by_role("option", name=option_name(label, option), exact=True).first
+        item.wait_for(state="visible")
+        time.sleep(0.2)  # it slides open
+        item.click(force=True)
+
     def set_number(self, label: str, value: float) -> None:
         """Type into a number input (or a slider's number box) and press Enter."""
         box = self.number_box(label)

@@ -14,12 +14,11 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 
 import pytest
 
-from console_page import ConsolePage, option_name, wait_for
+from console_page import ConsolePage, wait_for
 from support import PROJECT_DIR, RunningConsole, free_port, screenshot_if_failed, stop_process, wait_http
 
 pytestmark = [pytest.mark.browser, pytest.mark.random_order(disabled=True)]
@@ -65,14 +64,8 @@ def ui(module_ui: ConsolePage, request) -> Iterator[ConsolePage]:
 
 
 def choose(ui: ConsolePage, label: str, option: str) -> None:
-    """Pick ``option`` in the dropdown ``label``. The header is its own scroll region whose
-    lines (the link's ages) change 4 times a second, so its open list is never "stable" for
-    Playwright's wait: click the option once it is visible."""
-    ui.press(ui.row(label).locator("input").first)
-    item = ui.page.get_by_role("option", name=option_name(label, option), exact=True).first
-    item.wait_for(state="visible")
-    time.sleep(0.2)  # it slides open
-    item.click(force=True)
+    """Pick ``option`` in the dropdown ``label`` (``ConsolePage.choose_when_shown``)."""
+    ui.choose_when_shown(label, option)
 
 
 BANNER_JS = """() => {

@@ -10,12 +10,11 @@ GET requests only, to check what the page did.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 
 import pytest
 
-from console_page import ConsolePage, option_name, wait_for
+from console_page import ConsolePage, wait_for
 from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 
 pytestmark = pytest.mark.browser
@@ -40,16 +39,6 @@ def ui(task_console: RunningConsole, chromium, request) -> Iterator[ConsolePage]
     context.close()
 
 
-def _choose(ui: ConsolePage, label: str, option: str) -> None:
-    """Pick ``option`` in the dropdown ``label`` once its open list shows it (the header's lines
-    change 4 times a second, so the list is never "stable" for Playwright's own wait)."""
-    ui.press(ui.row(label).locator("input").first)
-    item = ui.page.get_by_role("option", name=option_name(label, option), exact=True).first
-    item.wait_for(state="visible")
-    time.sleep(0.2)  # it slides open
-    item.click(force=True)
-
-
 def _actions(ui: ConsolePage) -> list[str | None]:
     """The action each program line serves, as the program's view says."""
     return [e.get("action") for e in ui.session()["program"]["entries"] if e["kind"] != "EMPTY"]
@@ -58,7 +47,7 @@ def _actions(ui: ConsolePage) -> list[str | None]:
 def test_an_action_button_and_a_goal_plan_the_transfer_and_the_robot_reaches_the_goal(ui: ConsolePage) -> None:
     ui.text_appears(r"Link: connected", timeout=30)
     ui.text_appears(r"robot idle", timeout=30)
-    _choose(ui, "Regime", "quasi")
+    ui.choose_when_shown("Regime", "quasi")
     ui.tab("Task")
     ui.click("grasp(PEG)")  # the one action the loaded cell enables
     wait_for(lambda: set(_actions(ui)) == {"grasp(PEG)"}, what=f"the grasp's lines (notice {ui.notice()!r})")
@@ -78,7 +67,7 @@ def test_an_action_button_and_a_goal_plan_the_transfer_and_the_robot_reaches_the
     assert [action for _, action in sorted(steps)] == TRANSFER
 
     ui.tab("Preview")
-    _choose(ui, "Preview speed", "10x")
+    ui.choose_when_shown("Preview speed", "10x")
     wait_for(lambda: ui.session()["preview"]["speed"] == 10.0, what="10x")
     ui.tab("Submit")
     ui.click("Preview and submit")
@@ -87,8 +76,9 @@ def test_an_action_button_and_a_goal_plan_the_transfer_and_the_robot_reaches_the
     sent = ui.session()["sent"]["items"]
     wait_for(lambda: all(s["status"] == "done" for s in ui.session()["sent"]["items"]), timeout=120,
              what=f"every statement done on the robot ({[s['status'] for s in ui.session()['sent']['items']]})")
-    task = wait_for(lambda: (t := ui.console.api("GET", "/api/task").json())["robot_actions"] and t, timeout=30,
-                    what="the robot's actions on the Task tab")
+    # the robot's reports reach the task monitor after the statuses: wait for the last action's
+    task = wait_for(lambda: len((t := ui.console.api("GET", "/api/task").json())["robot_actions"]) >= len(TRANSFER) and t,
+                    timeout=30, what="the robot's actions on the Task tab")
     assert "PEGINHOLE(PEG,HOLE2)" in task["robot_marking"] and "HANDEEMPTY" in task["robot_marking"], task["robot_marking"]
     assert [a["action"] for a in task["robot_actions"]] == TRANSFER
     assert len(sent) >= lines and not task["deviations"], task["deviations"]
