@@ -201,6 +201,8 @@ class RobotCore:
         try:
             self._check_silence(out)
             out += self._reports(self.executor.tick())
+            if (own := self.executor.take_own_fault()) is not None:
+                self._halted(out, *own)
         except Exception as exc:  # noqa: BLE001 - the last-resort boundary of the servo loop
             log.exception("internal error in the servo tick: holding the arm")
             reason = f"internal error in the servo loop: {type(exc).__name__}: {str(exc)[:300]}; the arm holds"

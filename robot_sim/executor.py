@@ -76,7 +76,7 @@ from shared.motion import Interpreter, PlanRefused, Segment, SegmentKind, StopRe
 from shared.motion.task_effects import Grip, TaskObjects, arm_end
 from shared.spatial import matrix_to_rpy
 from shared.terrain.cell import TERRAIN_OBJECT, has_terrain, load_cell_terrain
-from shared.wire.messages import MAX_TEXT, ControlMode, RobotSnapshot, RobotState, StatementState
+from shared.wire.messages import MAX_TEXT, ControlMode, HaltCause, RobotSnapshot, RobotState, StatementState
 from robot_sim.settings import ExecutorSettings
 from robot_sim.world import PegState, SimWorld
 
@@ -102,6 +102,9 @@ class StepFailure(TeleprogError):
 
 _Runner = Generator[None, None, str | None]
 
+_FOLLOW_GATE_RAD = 0.002
+"""Joint error under which the flange cannot be ``following_error`` off (no kinematics needed)."""
+SENSOR_INVALID = "the wrist force sensor's readings are invalid (dropout); the arm holds"
 _FORCE_GROWTH_N = 1e-6
 """Growth of a start-in-contact force that counts as pressing further (N; the force is noise-free)."""
 _PHYSICS_FORCE_GROWTH_N = 2.0
@@ -165,6 +168,8 @@ class Executor:
         self.current: tuple[int, Statement] | None = None
         self._runner: _Runner | None = None
         self.wrench = np.zeros(6)
+        self.sensor_ok = True  # the wrist sensor's last reading was valid
+        self.own_fault: tuple[HaltCause, str] | None = None  # why the robot went to FAULT by itself, until taken
         self.hold_queue = False  # True while no console is connected: start nothing new
         self.halted: str | None = None  # why the robot stopped by itself (silence, internal error)
         self._events: list[ExecutorEvent] = []
@@ -282,8 +287,28 @@ class Executor:
         if self.physical and not self._commanded:
             self._idle_servo()
         self._sense()
+        if not self.sensor_ok and self.state in (RobotState.IDLE, RobotState.RUNNING):
+            self.internal_fault(SENSOR_INVALID)  # a robot that cannot feel force neither moves nor waits to
+            self.own_fault = (HaltCause.SENSOR_FAULT, SENSOR_INVALID)
         events, self._events = self._events, []
         return events
+
+    def take_own_fault(self) -> tuple[HaltCause, str] | None:
+        """Why the robot just went to FAULT by itself, outside a statement's own failure (once), or None."""
+        why, self.own_fault = self.own_fault, None
+        return why
+
+    def _following_error(self, q_cmd: np.ndarray) -> str | None:
+        """Physics: why the arm is not where the joint servo is commanded to ``q_cmd`` (the flange
+        further off than ``following_error``), or None. Forward kinematics only past a cheap gate."""
+        q = self.world.q
+        if float(np.max(np.abs(q - q_cmd))) < _FOLLOW_GATE_RAD:
+            return None
+        off = float(np.linalg.norm(self.robot.fk(q)[:3, 3] - self.robot.fk(q_cmd)[:3, 3]))
+        if off <= self.settings.following_error:
+            return None
+        return (f"the arm does not follow its servo: the flange is {off * 1e3:.1f} mm from the commanded pose "
+                f"(band {self.settings.following_error * 1e3:g} mm; a joint drags or something holds the arm)")
 
     def drain_events(self) -> list[ExecutorEvent]:
         """Status changes produced outside ``tick`` (by skip or abort), in order."""
@@ -417,6 +442,9 @@ class Executor:
         if q.shape != self.q.shape or not np.isfinite(q).all():
             raise StepFailure(f"the planner produced an unusable joint vector {np.array2string(q, precision=4)[:120]}")
         qd = np.asarray(qd, dtype=float)
+        if not np.isfinite(self.world.wrench).all():
+            self._hold()
+            raise StepFailure(SENSOR_INVALID)
         if self._complying and guarded:
             q = self._comply_q(q)
         if (touch := self._model_contact(q)) is not None:
@@ -430,8 +458,14 @@ class Executor:
                                    guarded=guarded)
         self._setpoint = None if tripped else q
         self._commanded = True
+        if not tripped and (lag := self._following_error(q)) is not None:
+            self._hold()
+            raise StepFailure(lag)
         self.q = self.world.q
         felt = self.world.contact()
+        if not np.isfinite(felt.force).all():
+            self._hold()
+            raise StepFailure(SENSOR_INVALID)
         if pressing is not None:
             clean = self.world.contact(noise=False)
             if clean.touching and clean.magnitude > pressing + _PHYSICS_FORCE_GROWTH_N:
@@ -510,6 +544,12 @@ class Executor:
             return
         if self.world.held_peg() is not None and (lost := self.world.lost()) is not None and self.current is not None:
             self._fail(lost)
+            return
+        if self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.world.asleep:
+            lag = self._following_error(self._held_setpoint())
+            if lag is not None:  # holding still and pushed off: a joint drags
+                self.internal_fault(lag)
+                self.own_fault = (HaltCause.FOLLOWING_ERROR, lag)
 
     def _watch_physics(self) -> None:
         """After a running statement's tick: what the physics did that nobody planned."""
@@ -521,12 +561,31 @@ class Executor:
             self._hold()
             raise StepFailure(f"unplanned contact: {touch}")
 
-    def _wait(self, seconds: float) -> Generator[None, None, None]:
-        """Let the world go on for ``seconds`` with the arm holding (a task waiting on its gripper)."""
+    def _wait(self, seconds: float, until=None) -> Generator[None, None, None]:
+        """Let the world go on for ``seconds`` with the arm holding (a task waiting on its gripper),
+        or until ``until()`` says there is no point waiting longer."""
         for _ in range(max(1, int(round(seconds / self.dt)))):
             self.world.servo(self._held_setpoint())
             self._commanded = True
+            felt = self.world.contact()
+            if felt.magnitude > self.settings.max_force:  # fingers closing on something held fast
+                self._hold()
+                raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {self.settings.max_force:g} N "
+                                  f"while the gripper moved ({felt.what or 'contact'})")
+            if until is not None and until():
+                return
             yield
+
+    def _closed_past(self, name: str | None):
+        """While the fingers close on ``name``: whether they have closed past its width (the
+        grip tolerance on), so nothing is between them and the grasp has failed already."""
+        half = getattr(self.world, "object_half", {}).get(name) if name else None
+        if half is None:
+            return None
+        from robot_sim.physics.world import HOLD_TOLERANCE
+
+        width = 2.0 * float(np.min(half[:2]))
+        return lambda: self.world.finger_opening() < width - HOLD_TOLERANCE
 
     def _model_contact(self, q: np.ndarray) -> str | None:
         """Why the commanded pose ``q`` would put the arm into the cell (the collision core on the
@@ -566,7 +625,9 @@ class Executor:
     def _sense(self) -> None:
         if self.physical:
             self.q = self.world.q
-            self.wrench = np.array(self.world.wrench)  # tared for the gripper: a held peg reads its weight
+            wrench = np.array(self.world.wrench)  # tared for the gripper: a held peg reads its weight
+            self.sensor_ok = bool(np.isfinite(wrench).all())
+            self.wrench = wrench if self.sensor_ok else np.zeros(6)  # (the report says why; the wire carries numbers)
             return
         contact = self.world.contact(self.q)
         self.wrench = np.concatenate([contact.force, np.zeros(3)])
@@ -587,7 +648,7 @@ class Executor:
             name = resolve_name(call.args[0], objects) if call.args else None
             if self.physical:
                 self.world.close_gripper(name)
-                yield from self._wait(self.settings.gripper_time)
+                yield from self._wait(self.settings.gripper_time, until=self._closed_past(name))
                 held, detail = self.world.grasp_result()
             else:
                 held, detail = self.world.grasp(self.q, name)

@@ -35,6 +35,8 @@ class WorldSettings(BaseModel):
     grasp_tilt: float = Field(0.0, ge=-0.5, le=0.5, description="tilt (rad) the peg settles at in the fingers once clear of its hole (physics)")
     friction: float | None = Field(None, ge=0.0, le=10.0, description="sliding friction of the cell's contacts; None: the cell's [physics] value")
     clearance: float | None = Field(None, ge=0.0, le=0.005, description="fit of the peg in its hole (m); None: the cell's geometry")
+    object_mass_factor: float = Field(1.0, gt=0.0, le=100.0,
+                                      description="the movable objects' true mass against the model's (physics; the robot tares for the model's)")
     grasp_tolerance: float = Field(0.004, gt=0.0, description="gripper-to-grasp-point distance that still grasps (m)")
     hole_depth: float = Field(0.030, gt=0.0, description="depth of every hole feature (m)")
 
@@ -67,6 +69,8 @@ class ExecutorSettings(BaseModel):
     compliance_turn: float = Field(0.0, ge=0.0, description="compliance: turning speed of the tool per newton metre about the axes across it (rad/s/(N m))")
     compliance_range: float = Field(0.004, ge=0.0, description="compliance: how far the tool may give way from its planned path (m)")
     compliance_tilt: float = Field(0.06, ge=0.0, description="compliance: how far the tool may turn from its planned path (rad)")
+    following_error: float = Field(0.004, gt=0.0, le=0.1,
+                                   description="the flange this far (m) from where the joint servo is commanded stops the arm (physics): a joint drags, or something holds the arm")
     max_queue: int = Field(5000, ge=1, description="statements the buffer holds; a communication that would overflow it is refused")
 
 

@@ -40,6 +40,9 @@ log = logging.getLogger(__name__)
 
 # collision bits (contype / conaffinity)
 _STATIC, _ARM, _OBJECT, _FINGER = 1, 2, 4, 8
+STATIC_BIT = _STATIC
+UNMODELLED_GEOM = "unmodelled/0"
+"""The spare geom a fault puts into the cell as an obstacle or a jam (its label: ``unmodelled``)."""
 
 
 @dataclass(frozen=True)
@@ -173,6 +176,11 @@ def build_mjcf(cell: Cell, params: PhysicsParams, object_poses: dict[str, np.nda
             T = obj.world_T_object @ shape.link_T_shape
             world.append(_geom(shape, T, f"{obj.name}/{k}", f'contype="{_STATIC}" conaffinity="0" '
                                f'friction="{p.friction:.6g} 0.005 0.0001" group="0"', meshes))
+
+    # the unmodelled thing a fault campaign puts into the cell (``robot_sim.physics.faults``): a box
+    # far below the cell, colliding with nothing until a fault gives it a place and a size
+    world.append(f'<geom name="{UNMODELLED_GEOM}" type="box" size="0.02 0.02 0.02" pos="0 0 -100" contype="0" '
+                 f'conaffinity="0" group="3" rgba="0.9 0.1 0.1 1" friction="{p.friction:.6g} 0.005 0.0001"/>')
 
     # -- the arm -----------------------------------------------------------------------------------
     arm_extra = f'contype="{_ARM}" conaffinity="{_STATIC}" group="1" friction="{p.friction:.6g} 0.005 0.0001"'

@@ -162,6 +162,10 @@ class PhysicsWorld:
         self.substeps = max(1, int(round(servo_period / self.params.timestep)))
         self._rng = np.random.default_rng(s.seed)
         self._noise_table: np.ndarray | None = None
+        self.sensor_fault: np.ndarray | None = None
+        """A fault of the wrist sensor (``robot_sim.physics.faults``): added to every reading, world
+        frame (a bias), or NaN (a dropout: the sensor flags its readings invalid). Never in the
+        clean wrench, which is the physics' own (ground truth)."""
         self._plan_world(where)
         self._build()
         self.gripper_closed = False
@@ -249,6 +253,15 @@ class PhysicsWorld:
                 if name.startswith(f"{obj_name}/"):
                     model.geom_pos[g] += shift
         data = mujoco.MjData(model)
+        self._modelled_mass = {name: float(model.body_subtreemass[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)])
+                               for name in layout.objects}
+        factor = self.settings.object_mass_factor
+        if factor != 1.0:  # heavier (or lighter) than modelled: the physics gets the true mass
+            for name in layout.objects:
+                b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+                model.body_mass[b] *= factor
+                model.body_inertia[b] *= factor
+            mujoco.mj_setConst(model, data)
         for name in layout.objects:
             b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
             a = model.jnt_qposadr[model.body_jntadr[b]]
@@ -429,6 +442,9 @@ class PhysicsWorld:
         fx, fy, fz = d.sensordata[0:3].tolist()
         zx, zy, zz = d.site_xmat[self._wrist_site, 6:9].tolist()
         w = GRAVITY * (self._tool_mass + self._payload)
+        if self.sensor_fault is not None:  # the fault, turned into the sensor's frame (F_world = -R f)
+            R = d.site_xmat[self._wrist_site].reshape(3, 3)
+            fx, fy, fz = (np.array([fx, fy, fz]) - R.T @ self.sensor_fault[:3]).tolist()
         return math.sqrt((fx - w * zx) ** 2 + (fy - w * zy) ** 2 + (fz - w * zz) ** 2)
 
     def hold(self) -> None:
@@ -464,6 +480,8 @@ class PhysicsWorld:
             self.time += n * self.params.timestep
             self.skipped_steps += n
             self.wrench = self.wrench_clean + self._noise_at(self.time)
+            if self.sensor_fault is not None:
+                self.wrench = self.wrench + self.sensor_fault
             return
         self.mj.mj_step(self.model, self.data, nstep=n)
         self._contact_pairs = None
@@ -586,6 +604,8 @@ class PhysicsWorld:
         wrench[4] += (com[0] - wrist[0]) * w
         self.wrench_clean = wrench
         self.wrench = wrench + self._noise_at(self.time)
+        if self.sensor_fault is not None:
+            self.wrench = self.wrench + self.sensor_fault
 
     def _noise_at(self, t: float) -> np.ndarray:
         """The sensor's noise at time ``t``: a function of the seed and the servo period's index
@@ -752,7 +772,8 @@ class PhysicsWorld:
         return self._held, self.pegs[self._held]
 
     def object_mass(self, name: str) -> float:
-        return float(self.model.body_subtreemass[self._bodies[name]])
+        """The object's mass as the model has it (what the robot tares its wrist for)."""
+        return self._modelled_mass[name]
 
     def _apply_tilt(self, name: str, tilt: float) -> None:
         """The object turns in the fingers by ``tilt`` about the line through both pads."""

@@ -92,6 +92,12 @@ def pieces(kind: str, mode: str, program: TransferProgram, schedule: Sequence[st
         return [], [Piece((text,), "step") for text in texts]
     if mode != "composite":
         raise TrialError(f"unknown mode {mode!r} for the transfer trial; modes: {', '.join(KIND_MODES['transfer'])}")
+    return [], composite_pieces(texts, schedule)
+
+
+def composite_pieces(texts: Sequence[str], schedule: Sequence[str] | None) -> list[Piece]:
+    """Segmented composite control: each statement sent as the regime of the zone it ends in
+    says, consecutive statements of one regime (but step) as one piece."""
     if schedule is None or len(schedule) != len(texts):
         raise TrialError("the composite mode needs the regime of every statement (regime_schedule)")
     out: list[Piece] = []
@@ -101,7 +107,7 @@ def pieces(kind: str, mode: str, program: TransferProgram, schedule: Sequence[st
             out[-1] = Piece(out[-1].texts + (text,), how)
         else:
             out.append(Piece((text,), how))
-    return [], out
+    return out
 
 
 def execute(driver: Driver, plan: Sequence[Piece], delay_s: float) -> list[SentRecord]:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -46,6 +47,16 @@ from shared.wire.messages import Accepted, Heartbeat, Rejected, StatementState, 
 from shared.wire.session import CommandSender
 
 CLIENT_ID = "teleprog trial (virtual)"
+
+
+class TickObserver(Protocol):
+    """Something that watches (or changes) the session after every servo period: a fault
+    campaign's injector and judge (``server.trials.faults``)."""
+
+    def on_tick(self, driver: VirtualDriver) -> None: ...
+
+    def next_due(self) -> float | None:
+        """The next time it must see a tick at, or None (idle periods are skipped up to it)."""
 
 
 @dataclass(frozen=True)
@@ -75,12 +86,16 @@ class VirtualDriver:
 
     clock: Clock = "virtual"
 
-    def __init__(self, cell_path: str | Path, world: WorldSettings, delay_s: float) -> None:
+    def __init__(self, cell_path: str | Path, world: WorldSettings, delay_s: float, link: LinkParams | None = None) -> None:
         self.parts = cell_parts(str(cell_path))
         self.cell = self.parts.cell
         self.world_settings = world
         self.delay_s = delay_s
+        self.link_params = link.model_copy(update={"delay_s": delay_s}) if link is not None else LinkParams(delay_s=delay_s)
+        self.sent: list[SentRecord] = []  # every record sent, in order
         self.t = 0.0
+        self.observers: list[TickObserver] = []  # a fault campaign's injector and judge
+        self.console_silent = (0.0, 0.0)  # a frozen console sends no heartbeat in this window
         self._new_robot()
 
     # -- the session ----------------------------------------------------------------------------
@@ -91,7 +106,8 @@ class VirtualDriver:
         self.dt = executor.dt
         executor.time = self.t  # one clock for the robot and the console
         self.sender = CommandSender(CLIENT_ID)
-        self.link = LinkCore(LinkParams(delay_s=self.delay_s))
+        self.link = LinkCore(self.link_params)
+        self._reconnect_at: float | None = None
         self.interp = Interpreter.for_cell(cell, cell.q_home)
         self.objects = ObjectWorld(cell)
         self._unsent: list[tuple[Statement, SentRecord]] = []
@@ -120,12 +136,19 @@ class VirtualDriver:
     def _step(self) -> None:
         self.t += self.dt
         if self.t + 1e-12 >= self._next_heartbeat:
-            self.link.send(self.t, Direction.UP, encode_message(Heartbeat(seq=self._heartbeat_seq)))
-            self._heartbeat_seq += 1
+            if not self.console_silent[0] <= self.t < self.console_silent[1]:
+                self.link.send(self.t, Direction.UP, encode_message(Heartbeat(seq=self._heartbeat_seq)))
+                self._heartbeat_seq += 1
             self._next_heartbeat += HEARTBEAT_INTERVAL_S
+        if self._reconnect_at is not None and self.t >= self._reconnect_at:
+            self._reconnect_at = None  # the console connects again: hello, welcome, and re-sending
+            self.robot.connect()
+            self.link.send(self.t, Direction.UP, encode_message(self.sender.hello()))
         for item in self.link.poll(self.t):
-            if isinstance(item, LinkFault):  # pragma: no cover - a trial's link has no loss
-                raise TrialError(f"the virtual link failed: {item}")
+            if isinstance(item, LinkFault):  # a lost message broke the connection (a lossy link)
+                self.robot.disconnect()
+                self._reconnect_at = item.up_at
+                continue
             if item.direction is Direction.UP:
                 data = item.payload
                 replies = self.robot.on_unit(data) if isinstance(data, bytes) else self.robot.on_text(data)
@@ -135,6 +158,8 @@ class VirtualDriver:
                 self._on_message(decode_message(item.payload))
         for m in self.robot.tick():
             self.link.send(self.t, Direction.DOWN, encode_message(m))
+        for observer in self.observers:
+            observer.on_tick(self)
 
     def _on_message(self, msg) -> None:
         if msg.type == "welcome":
@@ -176,7 +201,8 @@ class VirtualDriver:
         """One servo period; while the robot is idle, first skip the periods in which nothing can
         happen: up to the servo period before the next delivery, console heartbeat or ``limit``
         (an idle executor's tick only moves its clock; ``RobotCore.skip_idle``)."""
-        due = [x for x in (self.link.next_due(), self._next_heartbeat, limit) if x is not None]
+        due = [x for x in (self.link.next_due(), self._next_heartbeat, limit, self._reconnect_at, *(o.next_due() for o in self.observers))
+               if x is not None]
         periods = int((min(due) - self.t) / self.dt + 1e-9) - 1
         if periods > 0 and self.robot.skip_idle(self.t + periods * self.dt):
             self.t = self.robot.executor.time
@@ -226,6 +252,7 @@ class VirtualDriver:
         self._by_comm[comm_id] = records
         for r in records:
             r.submitted_at = self.t
+        self.sent += records
         for unit in units:
             self.link.send(self.t, Direction.UP, unit)
         return records

@@ -31,6 +31,7 @@ types them; the loaded ``PhysicsParams`` is in SI units.
 | ``compliance_centre_mm`` | 60 | where it tilts about: this far along the tool axis past the tool point |
 | ``compliance_travel_mm`` | 2.5 | how far it gives way, each way, sideways and along the axis |
 | ``compliance_tilt_deg`` | 3 | how far it tilts, each way |
+| ``damage_force_n`` | 100 | the contact load past which the arm, its tool, what it holds or the cell is harmed (the fault campaigns' judge; the robot never reads it) |
 
 The gripper hangs from the wrist sensor on a passive compliant wrist (a remote-centre compliance
 device): a rigid arm holding a peg in a hole with 0.03 mm of clearance wedges it at the first
@@ -67,6 +68,7 @@ _KEYS: tuple[tuple[str, str, float, float, bool], ...] = (
     ("compliance_centre_mm", "compliance_centre", 1e-3, -math.inf, False),
     ("compliance_travel_mm", "compliance_travel", 1e-3, 0.0, True),
     ("compliance_tilt_deg", "compliance_tilt", math.pi / 180.0, 0.0, True),
+    ("damage_force_n", "damage_force", 1.0, 0.0, True),
 )
 
 
@@ -95,6 +97,7 @@ class PhysicsParams:
     compliance_centre: float = 0.06  # m along the tool axis from the tool point
     compliance_travel: float = 0.0025  # m each way, sideways and along the axis
     compliance_tilt: float = math.radians(3.0)  # rad each way
+    damage_force: float = 100.0  # N: a contact load past this harms the arm, the tool or the cell
 
     def with_overrides(self, *, friction: float | None = None, clearance: float | None = None, where: str = "settings"
                        ) -> "PhysicsParams":

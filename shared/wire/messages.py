@@ -237,6 +237,8 @@ class HaltCause(str, Enum):
 
     SILENCE = "silence"  # nothing heard from the console past the silence limit
     INTERNAL_ERROR = "internal_error"  # the executor's last-resort boundary caught an error
+    SENSOR_FAULT = "sensor_fault"  # a sensor the robot moves by (the wrist force sensor) reads invalid
+    FOLLOWING_ERROR = "following_error"  # the arm is not where its joint servo holds it (a joint drags)
 
 
 class Halted(_Model):

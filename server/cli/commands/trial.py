@@ -149,3 +149,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         a.set_defaults(handler=_cmd_trial)
         if kind != "transfer":
             a.set_defaults(mode=None)
+    from server.cli.commands import trial_faults
+
+    trial_faults.register(kinds)
