@@ -458,11 +458,14 @@ class Executor:
                                    guarded=guarded)
         self._setpoint = None if tripped else q
         self._commanded = True
-        if not tripped and (lag := self._following_error(q)) is not None:
-            self._hold()
-            raise StepFailure(lag)
         self.q = self.world.q
         felt = self.world.contact()
+        # in a motion that expects no contact, a lag is a joint that drags (a contact would show
+        # as force first); in guarded motions and tasks the force rules govern (a stuck peg holds
+        # the arm back by design)
+        if not tripped and not guarded and (lag := self._following_error(q)) is not None:
+            self._hold()
+            raise StepFailure(lag)
         if not np.isfinite(felt.force).all():
             self._hold()
             raise StepFailure(SENSOR_INVALID)
@@ -545,7 +548,7 @@ class Executor:
         if self.world.held_peg() is not None and (lost := self.world.lost()) is not None and self.current is not None:
             self._fail(lost)
             return
-        if self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.world.asleep:
+        if self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.world.asleep and not self._in_task:
             lag = self._following_error(self._held_setpoint())
             if lag is not None:  # holding still and pushed off: a joint drags
                 self.internal_fault(lag)
@@ -561,17 +564,18 @@ class Executor:
             self._hold()
             raise StepFailure(f"unplanned contact: {touch}")
 
-    def _wait(self, seconds: float, until=None) -> Generator[None, None, None]:
-        """Let the world go on for ``seconds`` with the arm holding (a task waiting on its gripper),
-        or until ``until()`` says there is no point waiting longer."""
+    def _wait(self, seconds: float, until=None, doing: str = "wait") -> Generator[None, None, None]:
+        """Let the world go on for ``seconds`` with the arm holding (a task waiting on its gripper,
+        ``doing``), or until ``until()`` says there is no point waiting longer. A force past the
+        safety limit meanwhile (fingers closing on something held fast) fails ``doing``."""
         for _ in range(max(1, int(round(seconds / self.dt)))):
             self.world.servo(self._held_setpoint())
             self._commanded = True
             felt = self.world.contact()
             if felt.magnitude > self.settings.max_force:  # fingers closing on something held fast
                 self._hold()
-                raise StepFailure(f"force {felt.magnitude:.1f} N over the safety limit {self.settings.max_force:g} N "
-                                  f"while the gripper moved ({felt.what or 'contact'})")
+                raise StepFailure(f"{doing} failed: force {felt.magnitude:.1f} N over the safety limit "
+                                  f"{self.settings.max_force:g} N while the fingers moved ({felt.what or 'contact'})")
             if until is not None and until():
                 return
             yield
@@ -648,7 +652,7 @@ class Executor:
             name = resolve_name(call.args[0], objects) if call.args else None
             if self.physical:
                 self.world.close_gripper(name)
-                yield from self._wait(self.settings.gripper_time, until=self._closed_past(name))
+                yield from self._wait(self.settings.gripper_time, until=self._closed_past(name), doing="grasp")
                 held, detail = self.world.grasp_result()
             else:
                 held, detail = self.world.grasp(self.q, name)
@@ -660,7 +664,7 @@ class Executor:
                 if not self.world.gripper_closed and self.world.held_peg() is None:
                     return "gripper opened, holding nothing"  # already open: nothing to wait for
                 self.world.open_gripper()
-                yield from self._wait(self.settings.gripper_time)
+                yield from self._wait(self.settings.gripper_time, doing="release")
                 said = self.world.release_result()
             else:
                 said = self.world.release(self.q)

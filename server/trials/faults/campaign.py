@@ -162,7 +162,7 @@ def _run(spec: GroupSpec, fault: Fault, twin: CleanTrace | None, index: int) -> 
     done = finished and len(sent) == len(spec.texts) and all(r.status == "done" for r in sent)
     if finished and not done and judge.stop_at is None and not error:
         bad = next((r for r in sent if r.status != "done"), None)
-        error = (f"the program ended without a stop and without every statement done: "
+        error = ("the program ended without a stop and without every statement done: "
                  + (f"{bad.text}: {bad.status}: {bad.reason}" if bad else f"{len(sent)} of {len(spec.texts)} sent"))
     verdict = judge.verdict(driver, finished=done, error=error)
     ends = [r.finished_at for r in sent if r.finished_at is not None]
