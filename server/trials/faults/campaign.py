@@ -17,6 +17,7 @@ gets the same statuses and the same robot times.
 from __future__ import annotations
 
 import functools
+import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -33,6 +34,8 @@ from server.trials.faults.judge import SETTLE_S, Judge, RunOver
 from server.trials.faults.results import FaultRun, FaultStatement
 from server.trials.session import TrialError
 from shared.errors import InputError
+
+log = logging.getLogger(__name__)
 
 GROUP = 10
 """Runs per world: the first fault-free, the other nine with a fault each (10 % fault-free runs)."""
@@ -196,14 +199,28 @@ def run_group(spec: GroupSpec) -> list[FaultRun]:
     """The group's fault-free twin, then each of its faulted runs asked for (a top-level function,
     so executors can ship it)."""
     first = spec.group * GROUP
-    clean, twin = _run(spec, Fault(kind="none"), None, first)
+    try:
+        clean, twin = _run(spec, Fault(kind="none"), None, first)
+    except Exception as exc:  # noqa: BLE001 - a run that raises is a result (hung), not the campaign's end
+        log.exception("group %d's fault-free run raised", spec.group)
+        return [_raised(spec, i, Fault(kind="none"), exc) for i in spec.indices]
     out = [clean] if first in spec.indices else []
     for index in spec.indices:
         if index == first:
             continue
-        run, _ = _run(spec, fault_of(spec, index, twin), twin, index)
+        fault = fault_of(spec, index, twin)
+        try:
+            run, _ = _run(spec, fault, twin, index)
+        except Exception as exc:  # noqa: BLE001
+            log.exception("run %d raised", run_seed(spec.seed, index))
+            run = _raised(spec, index, fault, exc)
         out.append(run)
     return out
+
+
+def _raised(spec: GroupSpec, index: int, fault: Fault, exc: Exception) -> FaultRun:
+    return FaultRun(seed=run_seed(spec.seed, index), world_seed=spec.seed * 1000 + spec.group, fault=fault,
+                    outcome="hung", why=f"the run raised {type(exc).__name__}: {str(exc)[:300]}")
 
 
 def group_specs(request: CampaignRequest, cell: str, indices: Sequence[int]) -> list[GroupSpec]:
