@@ -93,6 +93,8 @@ class VirtualDriver:
         self.delay_s = delay_s
         self.link_params = link.model_copy(update={"delay_s": delay_s}) if link is not None else LinkParams(delay_s=delay_s)
         self.sent: list[SentRecord] = []  # every record sent, in order
+        self.link_losses: list[float] = []  # when a lost message cut the connection (a lossy link)
+        self.robot_said: list[tuple[float, str | None]] = []  # failures and halts as the robot sent them (its clock)
         self.t = 0.0
         self.observers: list[TickObserver] = []  # a fault campaign's injector and judge
         self.console_silent = (0.0, 0.0)  # a frozen console sends no heartbeat in this window
@@ -146,6 +148,7 @@ class VirtualDriver:
             self.link.send(self.t, Direction.UP, encode_message(self.sender.hello()))
         for item in self.link.poll(self.t):
             if isinstance(item, LinkFault):  # a lost message broke the connection (a lossy link)
+                self.link_losses.append(item.at)
                 self.robot.disconnect()
                 self._reconnect_at = item.up_at
                 continue
@@ -157,6 +160,8 @@ class VirtualDriver:
             else:
                 self._on_message(decode_message(item.payload))
         for m in self.robot.tick():
+            if isinstance(m, StatusReport) and m.state is StatementState.FAILED or m.type == "halted":
+                self.robot_said.append((self.t, m.reason if isinstance(m, StatusReport) else f"{m.cause.value}: {m.detail}"))
             self.link.send(self.t, Direction.DOWN, encode_message(m))
         for observer in self.observers:
             observer.on_tick(self)

@@ -175,6 +175,8 @@ def _run(spec: GroupSpec, fault: Fault, twin: CleanTrace | None, index: int) -> 
         "statements": [FaultStatement(text=r.text, status=r.status, reason=r.reason,
                                       robot_run_s=None if r.robot_run_s is None else round(r.robot_run_s, 6)) for r in sent],
         "halts": list(driver.halts),
+        "robot_reason": next((why for t, why in driver.robot_said if judge.stop_at is not None and t >= judge.stop_at - 1e-9),
+                             judge.halted),
     })
     if record is not None:
         record.end = judge.last_busy

@@ -76,6 +76,7 @@ class Judge:
         self.onset_how = ""
         self.stop_at: float | None = None
         self.stop_state = ""
+        self.halted: str | None = None
         self._stop_tcp: np.ndarray | None = None
         self._last_tcp: np.ndarray | None = None
         self.stop_distance = 0.0
@@ -116,6 +117,7 @@ class Judge:
         if self.stop_at is None:
             if ex.state in _STOPPED:
                 self.stop_at, self.stop_state = t, ex.state.name.lower()
+                self.halted = ex.halted  # a halt's reason (silence, own faults), even with no console to send it to
                 self._stop_tcp = self._last_tcp if self._last_tcp is not None else tcp
             else:
                 self._watch_silence(driver, ex, t)
@@ -231,7 +233,10 @@ class Judge:
         elif self.missed_how:
             outcome, why = "missed", self.missed_how
         elif self.stop_at is not None:
-            if f.kind == "none" or applied is None or self.stop_at < applied:
+            lost = [t for t in driver.link_losses if t <= self.stop_at]
+            if (f.kind == "none" or applied is None or self.stop_at < applied) and lost:
+                outcome, why = "caught", f"stopped after the lossy link cut the connection at {lost[0] - self.t0:.2f} s"
+            elif f.kind == "none" or applied is None or self.stop_at < applied:
                 outcome, why = "false_stop", "the robot stopped with no fault in the world"
             else:
                 outcome, why = "caught", ""

@@ -45,6 +45,7 @@ class FaultRun(BaseModel):
     peak_load_n: float = 0.0
     peak_load_on: str = ""
     max_off_path_mm: float = 0.0
+    robot_reason: str | None = None  # why the robot stopped, as it said so (its first failure or halt from the stop on)
     program_s: float | None = None  # first submit to the last final report, or to the end of the run
     statements: list[FaultStatement] = Field(default_factory=list)
     halts: list[str] = Field(default_factory=list)
