@@ -460,10 +460,12 @@ class Executor:
         self._commanded = True
         self.q = self.world.q
         felt = self.world.contact()
-        # in a motion that expects no contact, a lag is a joint that drags (a contact would show
-        # as force first); in guarded motions and tasks the force rules govern (a stuck peg holds
-        # the arm back by design)
-        if not tripped and not guarded and (lag := self._following_error(q)) is not None:
+        # a lag the wrist cannot explain is a joint that drags: in a motion that expects no
+        # contact any lag (a contact would show as force first), in a guarded motion or a task
+        # one with no contact force; in contact the force rules govern (a stuck peg holds the arm
+        # back by design)
+        if (not tripped and (not guarded or felt.magnitude < self.settings.touch_force)
+                and (lag := self._following_error(q)) is not None):
             self._hold()
             raise StepFailure(lag)
         if not np.isfinite(felt.force).all():
@@ -581,15 +583,27 @@ class Executor:
             yield
 
     def _closed_past(self, name: str | None):
-        """While the fingers close on ``name``: whether they have closed past its width (the
-        grip tolerance on), so nothing is between them and the grasp has failed already."""
+        """While the fingers close on ``name``: whether the grasp has failed already, so there is
+        no point waiting out the gripper's time: they closed past its width (the grip tolerance
+        on: nothing between them), or they stopped without both pads on it (one finger pushing
+        something held fast)."""
         half = getattr(self.world, "object_half", {}).get(name) if name else None
         if half is None:
             return None
         from robot_sim.physics.world import HOLD_TOLERANCE
 
         width = 2.0 * float(np.min(half[:2]))
-        return lambda: self.world.finger_opening() < width - HOLD_TOLERANCE
+        last: list[float] = []
+
+        def failed() -> bool:
+            opening = self.world.finger_opening()
+            if opening < width - HOLD_TOLERANCE:
+                return True
+            still = len(last) >= 2 and abs(opening - last[-1]) < 2e-5 and abs(last[-1] - last[-2]) < 2e-5
+            last.append(opening)
+            return still and self.world.held_by_fingers() != name
+
+        return failed
 
     def _model_contact(self, q: np.ndarray) -> str | None:
         """Why the commanded pose ``q`` would put the arm into the cell (the collision core on the

@@ -56,6 +56,8 @@ BRAKE_TIME = 0.05
 """How long it brakes (s)."""
 MONITOR_PERIOD = 0.002
 """The force monitor's period (s): the setpoint moves and the wrist is read this often."""
+CLOSE_FORCE = 0.25
+"""The fingers close with this share of the grip force until both pads touch one object."""
 HOLD_TOLERANCE = 0.002
 """How much narrower than the held object the fingers may close before it counts as lost (m)."""
 
@@ -169,6 +171,7 @@ class PhysicsWorld:
         self._plan_world(where)
         self._build()
         self.gripper_closed = False
+        self._soft_close = False
         self._held: str | None = None
         self._grasp_name: str | None = None
         self._tilt_pending = 0.0
@@ -449,13 +452,14 @@ class PhysicsWorld:
 
     def hold(self) -> None:
         """Hold the arm where it is now (a stop): the setpoint becomes the measured pose, at rest,
-        and the servo brakes (damping only, ``BRAKE_GAIN`` times the servo's, for ``BRAKE_TIME``;
-        gravity stays compensated) so the arm halts within a servo period instead of coasting
-        through the servo's own settling and back."""
+        and the servo brakes (``BRAKE_GAIN`` times its damping for ``BRAKE_TIME``, its stiffness
+        kept, gravity compensated) so the arm halts within a servo period instead of coasting
+        through the servo's own settling and back, and a torque from outside (a joint that drags,
+        a contact pushing back) cannot carry it off while it brakes."""
         self._set_target(self.q.copy(), np.zeros(self.robot.dof))
         m = self.model
-        m.actuator_gainprm[self._servo, 0] = 0.0  # braking: damping only, no pull back to the stop point
-        m.actuator_biasprm[self._servo, 1] = 0.0
+        m.actuator_gainprm[self._servo, 0] = self.kp  # braking: the stop point held stiffly, heavily damped
+        m.actuator_biasprm[self._servo, 1] = -self.kp
         m.actuator_biasprm[self._servo, 2] = -BRAKE_GAIN * self.kv
         self._brake_until = self.time + BRAKE_TIME
         self._asleep = False
@@ -468,10 +472,24 @@ class PhysicsWorld:
         self._asleep = False
 
     def set_gripper(self, closed: bool) -> None:
+        """Close or open the fingers. They close softly (``CLOSE_FORCE`` of the grip force) until
+        both pads touch one object, and squeeze with the full grip force only then
+        (:meth:`_firm_grip`): a finger that meets something held fast pushes it gently instead
+        of striking it with the whole grip."""
         self.gripper_closed = closed
+        force = self.params.grip_force * (CLOSE_FORCE if closed else 1.0)
         for g in self._grip:
             self.data.ctrl[g] = self.layout.finger_travel if closed else 0.0
+            self.model.actuator_forcerange[g] = (-force, force)
+        self._soft_close = closed and bool(self._grip)
         self._asleep = False
+
+    def _firm_grip(self) -> None:
+        """Both pads on one object: the full grip force."""
+        if self._soft_close and self.held_by_fingers() is not None:
+            for g in self._grip:
+                self.model.actuator_forcerange[g] = (-self.params.grip_force, self.params.grip_force)
+            self._soft_close = False
 
     def advance(self, seconds: float, sense: bool = True) -> None:
         """Let ``seconds`` pass with the present setpoints (no steps while the world is at rest)."""
@@ -587,6 +605,8 @@ class PhysicsWorld:
             peg.tool_T_peg = invert(self.world_T_tcp()) @ peg.world_T_peg if peg.held else None
             self._read.add(name)
         self._touching = self._touching_what()
+        if self._soft_close:
+            self._firm_grip()
         self._sense()
 
     def _sense(self) -> None:

@@ -12,7 +12,16 @@ import numpy as np
 import pytest
 
 from robot_sim.executor import Executor
-from server.trials.faults.campaign import GROUP, CampaignRequest, group_specs, replay, run_group, run_seed, split_seed
+from server.trials.faults.campaign import (
+    GROUP,
+    CampaignRequest,
+    group_specs,
+    replay,
+    run_campaign,
+    run_group,
+    run_seed,
+    split_seed,
+)
 from server.trials.faults.catalogue import FAULT_KINDS, CleanTrace, draw_fault
 from server.trials.faults.link import FaultyLink
 from server.trials.faults.results import summarize
@@ -101,6 +110,9 @@ def _run(seed: int, **request) -> object:
     (5000018, "obstacle", "the box appeared inside the arm (now it is never put where it touches)"),
     (3000009, "object_missing", "taken after the last task: the world wrong, nothing could find it"),
     (4000017, "console_frozen", "the console was silent before its freeze (a wrong window): a false stop"),
+    (2026000181, "hole_moved", "the fingers struck a peg held fast by its moved hole with the whole grip (102 N)"),
+    (2026000889, "sensor_bias", "the biased sensor ended the descent high; the closing fingers struck the peg (102 N)"),
+    (2026000511, "joint_drag", "a drag in a guarded motion ran the arm 5.8 mm off its path unwatched"),
 ])
 def test_every_miss_found_while_building_stays_found(seed: int, kind: str, found: str) -> None:
     run = _run(seed)
@@ -168,3 +180,11 @@ def test_bad_flags_are_one_line_naming_the_flag(args: list[str], says: str) -> N
     out = _cli(*args)
     assert out.returncode != 0 and says in out.stderr and "Traceback" not in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_local_workers_give_the_same_results_as_this_process() -> None:
+    request = CampaignRequest(runs=12, seed=12, kinds=("sensor_dropout", "object_missing"))
+    here, _ = run_campaign(request, CELL)
+    there, _ = run_campaign(request.model_copy(update={"workers": 2}), CELL)
+    assert [r.seed for r in here] == list(range(run_seed(12, 0), run_seed(12, 12)))
+    assert [r.model_dump() for r in here] == [r.model_dump() for r in there]
