@@ -158,16 +158,21 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "server.cli", "trial", "faults", *args], capture_output=True, text=True, timeout=600)
 
 
-def test_the_command_prints_the_summary_and_replays_a_seed() -> None:
+def test_the_command_prints_the_summary_and_replays_a_seed(tmp_path) -> None:
     out = _cli("--clock", "virtual", "--runs", "3", "--seed", "7", "--json")
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     for key in ("runs", "faults", "caught", "missed", "false_stops", "stop_latency_ms", "misses"):
         assert key in summary
     assert summary["runs"] == 3 and {"p50", "p99"} <= set(summary["stop_latency_ms"])
-    replayed = _cli("--replay", "7000001", "--json")
+    replayed = _cli("--replay", "7000001", "--json", "--out", str(tmp_path))
     assert replayed.returncode == 0, replayed.stderr
     assert json.loads(replayed.stdout)["seed"] == 7000001
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "teleprog-fault-7000001.mcap", "rb") as f:
+        topics = [channel.topic for _, channel, _ in make_reader(f).iter_messages()]
+    assert topics[0] == "/fault/fault" and topics[-1] == "/fault/run" and topics.count("/fault/ground_truth") > 100
 
 
 @pytest.mark.parametrize(("args", "says"), [

@@ -4,7 +4,8 @@ judged from the physics (``server.trials.faults``).
 ``--json`` prints the summary (``runs``, ``faults``, ``caught``, ``missed``, ``false_stops``,
 ``stop_latency_ms``, ``misses`` with their seeds ...); ``--out DIR`` writes ``results.json`` (the
 summary and every run) and ``outcomes.png``. ``--replay SEED`` runs one run again alone, with the
-campaign's other flags, and prints it whole (its fault, verdict, statuses and robot times). The
+campaign's other flags, prints it whole (its fault, verdict, statuses and robot times) and records
+it as an MCAP file (``server.trials.faults.recording``). The
 exit is 1 when a run was missed (or hung), so a campaign can gate a change.
 """
 
@@ -117,7 +118,11 @@ def _cmd_faults(args: argparse.Namespace) -> int:
 def _replay(request, cell: str, args: argparse.Namespace) -> int:
     from server.trials.faults.campaign import replay
 
-    run = replay(request, cell, args.replay)
+    out = Path(args.out) if args.out else Path.cwd()
+    out.mkdir(parents=True, exist_ok=True)
+    mcap = out / f"teleprog-fault-{args.replay}.mcap"
+    run = replay(request, cell, args.replay, record=mcap)
+    print(f"recorded the run in {mcap}", file=sys.stderr)
     if args.json:
         print_json(run.model_dump(mode="json"))
     else:
@@ -125,6 +130,8 @@ def _replay(request, cell: str, args: argparse.Namespace) -> int:
               + (f": {run.why}" if run.why else ""))
         if run.note:
             print(f"  fault: {run.note}")
+        if run.robot_reason:
+            print(f"  the robot: {run.robot_reason}")
         if run.latency_ms is not None:
             print(f"  stop {run.stop_s:.2f} s ({run.stop_state}), {run.latency_ms:g} ms after the onset "
                   f"({run.onset_how}); stopped within {run.stop_distance_mm:g} mm")
@@ -155,7 +162,8 @@ def register(kinds: argparse._SubParsersAction) -> None:
     a.add_argument("--force-noise-n", type=float, default=0.05, metavar="N", help="force sensor noise, std in N (default 0.05)")
     a.add_argument("--workers", type=int, default=1, metavar="K", help="run K groups of runs at once in local processes (default 1)")
     a.add_argument("--scheduler", default=None, metavar="URL", help="run on the Dask cluster at URL (tcp://HOST:PORT)")
-    a.add_argument("--replay", type=int, default=None, metavar="SEED", help="run the run with this seed again, alone, and print it whole")
+    a.add_argument("--replay", type=int, default=None, metavar="SEED",
+                   help="run the run with this seed again, alone, print it whole and record it (DIR/teleprog-fault-SEED.mcap with --out, else here)")
     a.add_argument("--json", action="store_true", help="print the summary (or the replayed run) as one JSON document")
     a.add_argument("--out", metavar="DIR", default=None, help="write DIR/results.json (every run) and DIR/outcomes.png")
     a.set_defaults(handler=_cmd_faults)

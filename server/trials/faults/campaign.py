@@ -138,18 +138,25 @@ def _session(spec: GroupSpec, fault: Fault):
     return driver
 
 
-def _run(spec: GroupSpec, fault: Fault, twin: CleanTrace | None, index: int) -> tuple[FaultRun, CleanTrace | None]:
+def _run(spec: GroupSpec, fault: Fault, twin: CleanTrace | None, index: int,
+         record: Path | None = None) -> tuple[FaultRun, CleanTrace | None]:
     from server.trials.kinds import execute
 
     driver = _session(spec, fault)
     t0 = driver.t
-    record = CleanTrace(dt=driver.dt, start=t0, end=t0, last_task_start=t0) if twin is None else None
+    trace = CleanTrace(dt=driver.dt, start=t0, end=t0, last_task_start=t0) if twin is None else None
     injector = None
     if fault.kind != "none":
         injector = Injector(fault, twin, t0)
         injector.attach(driver)
-    judge = Judge(driver, fault, injector, twin, t0, record=record)
+    judge = Judge(driver, fault, injector, twin, t0, record=trace)
     driver.observers.append(judge)
+    recorder = None
+    if record is not None:
+        from server.trials.faults.recording import RunRecorder
+
+        recorder = RunRecorder(record, fault)
+        driver.observers.append(recorder)
     pieces = _pieces(spec)
     finished, error = False, ""
     try:
@@ -178,11 +185,13 @@ def _run(spec: GroupSpec, fault: Fault, twin: CleanTrace | None, index: int) -> 
         "robot_reason": next((why for t, why in driver.robot_said if judge.stop_at is not None and t >= judge.stop_at - 1e-9),
                              judge.halted),
     })
-    if record is not None:
-        record.end = judge.last_busy
-        record.last_task_start = judge.last_task_start
-        record.end_holes = {name: peg.in_hole for name, peg in driver.world.pegs.items()}
-    return run, record
+    if trace is not None:
+        trace.end = judge.last_busy
+        trace.last_task_start = judge.last_task_start
+        trace.end_holes = {name: peg.in_hole for name, peg in driver.world.pegs.items()}
+    if recorder is not None:
+        recorder.close(run, driver.t)
+    return run, trace
 
 
 def fault_of(spec: GroupSpec, index: int, twin: CleanTrace) -> Fault:
@@ -261,10 +270,14 @@ def run_campaign(request: CampaignRequest, cell: str | Path,
     return results, time.perf_counter() - started
 
 
-def replay(request: CampaignRequest, cell: str | Path, seed: int) -> FaultRun:
-    """Run ``seed`` again alone (after its group's twin), on the campaign's settings."""
+def replay(request: CampaignRequest, cell: str | Path, seed: int, record: Path | None = None) -> FaultRun:
+    """Run ``seed`` again alone (after its group's twin), on the campaign's settings; ``record``:
+    write the run as an MCAP file there (``server.trials.faults.recording``)."""
     campaign_seed, index = split_seed(seed)
     request = request.model_copy(update={"seed": campaign_seed})
     (spec,) = group_specs(request, str(cell), [index])
-    runs = run_group(spec)
-    return runs[-1]
+    first = spec.group * GROUP
+    clean, twin = _run(spec, Fault(kind="none"), None, first, record=record if index == first else None)
+    if index == first:
+        return clean
+    return _run(spec, fault_of(spec, index, twin), twin, index, record=record)[0]
