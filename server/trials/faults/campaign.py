@@ -100,7 +100,7 @@ def program_texts(cell: str, program: str | None) -> tuple[str, ...]:
     parsed = parse_program(read_program_file(program), path=program)
     if not parsed.ok:
         first = parsed.errors[0]
-        raise InputError(f"--program {program}: {first}")
+        raise InputError(f"--program {program}:{first.line}:{first.col}: {first.message}")
     if not parsed.statements:
         raise InputError(f"--program {program}: no statements")
     return tuple(format_statement(s) for s in parsed.statements)

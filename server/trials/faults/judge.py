@@ -10,12 +10,12 @@ Each period it reads:
 - **the stop**: the first period the executor holds (FAULT or STOPPED), and from then on for
   ``SETTLE_S`` how far the tool still travels (the stopping distance) and how long until it rests;
 - **the physical onset** of the fault: for a sensor that drops out, the first period the robot
-  moves without it (or has stopped); for the link, the
-  first heartbeat overdue at a robot with work to do; for a change of the world or a dragging
-  joint, the first period the arm is off its commanded path, the robot pushes against the unmodelled geom
-  past its force band or for longer than its time band (``jam_time``),
-  the robot pushes harder than its own band for the motion it runs, or its fingers close off its
-  fault-free twin's (the group's clean run on the same world, tick for tick), whichever is first;
+  moves without it (or has stopped); for the link, the first heartbeat overdue at a robot with
+  work to do; for a change of the world or a dragging joint, the first period the robot's own
+  bands are crossed in the physics: the arm more than ``OFF_PATH_M`` off its commanded path, the
+  robot pushing harder than its force band for the motion it runs (the unmodelled box: whatever
+  it does), or its fingers closed on nothing where its fault-free twin (the group's clean run on
+  the same world, tick for tick) held the object; a stop before any of these has latency 0;
 - **running off the path**: the flange more than ``OFF_PATH_M`` from where the joint servo is
   commanded to hold it for more than ``OFF_PATH_S`` while a statement runs, with no stop;
 - **running on through silence**: the robot with work to do and nothing heard from the console
@@ -42,10 +42,10 @@ from shared.wire.messages import RobotState
 SETTLE_S = 0.5
 """How long the judge watches after a stop (stopping distance, harm while braking) before the run ends."""
 BANDS = {"finger_m": 0.002}
-"""How far the fingers may close off their fault-free twin's opening before a change of the world
-counts as physically there (the grip's tolerance). The force band is the robot's own for what it
-is doing (``_force_band``: its unplanned-contact limit, or its safety limit in a guarded motion or
-a task), applied to the force it really exerts."""
+"""The grip's band: the fingers closed this far past the object's width hold nothing (counted
+where the fault-free twin held the object at the same moment). The force band is the robot's own
+for what it is doing (``_force_band``: its unplanned-contact limit, or its safety limit in a
+guarded motion or a task), applied to the force it really exerts."""
 OFF_PATH_M = 0.005
 OFF_PATH_S = 0.1
 SILENCE_MARGIN_S = 0.1
@@ -85,7 +85,8 @@ class Judge:
         self._off_since: float | None = None
         self.max_off_path = 0.0
         self.off_path_now = 0.0
-        self._touch_since: float | None = None
+        halves = [h for h in world.object_half.values() if h is not None] if hasattr(world, "object_half") else []
+        self._width = 2.0 * float(min(min(h[:2]) for h in halves)) if halves else 0.0
         self.last_task_start = t0
         self._task_number: int | None = None
         self.last_busy = t0
@@ -146,23 +147,21 @@ class Judge:
                 self.onset, self.onset_how = t, "the robot moves by the faulty sensor"
             return
         world = driver.world
-        if world_faults.unmodelled_touched(world):
-            # touching it is a surprise once it is pushed past the force band or lasts past the
-            # time band (the robot's jam time: a guarded push that makes no progress)
-            self._touch_since = t if self._touch_since is None else self._touch_since
-            if load > _force_band(ex) or t - self._touch_since >= ex.settings.jam_time:
-                self.onset, self.onset_how = t, "against the unmodelled box past the robot's force or time band"
-                return
-        else:
-            self._touch_since = None
+        if world_faults.unmodelled_touched(world) and load > _force_band(ex):
+            self.onset, self.onset_how = t, f"pushing the unmodelled box with {load:.0f} N, past the robot's band"
+            return
         if self.off_path_now > OFF_PATH_M:
             self.onset, self.onset_how = t, "the arm off its commanded path"
             return
         row = None if self.twin is None else self.twin.row(t)
-        if row is not None and abs(world.finger_opening() - self.twin.finger[row]) > BANDS["finger_m"]:
-            self.onset, self.onset_how = t, "fingers off their fault-free opening"
+        if row is not None and world.gripper_closed and self._empty_grip(world) and self.twin.finger[row] >= self._width - BANDS["finger_m"]:
+            self.onset, self.onset_how = t, "the fingers closed on nothing where the fault-free run held the object"
         elif ex.state is RobotState.RUNNING and load > _force_band(ex):
             self.onset, self.onset_how = t, f"pushing with {load:.0f} N, past the robot's {_force_band(ex):g} N band"
+
+    def _empty_grip(self, world) -> bool:
+        """The fingers closed past the object's width: nothing between them (the grip's band)."""
+        return world.finger_opening() < self._width - BANDS["finger_m"]
 
     def _watch_path(self, world, ex, t: float) -> None:
         self.off_path_now = 0.0
