@@ -35,6 +35,7 @@ CAUSES = (  # (words in the reason, the stop's cause as the table names it)
     ("no hole found", "hole not found within the 4 mm search"),
     ("pressing further", "recovery: a motion pressing further into a contact"),
     ("silence", "silence: nothing heard for 0.2 s + 1 s with work to do"),
+    ("no message from the console", "silence: nothing heard for 0.2 s + 1 s with work to do"),
     ("unstable", "physics unstable (the world restored, the arm held)"),
 )
 

@@ -173,7 +173,12 @@ class VirtualDriver:
             return
         self.sender.on_message(msg)
         if isinstance(msg, Accepted):
-            for record, number in zip(self._by_comm.pop(msg.comm_id, []), msg.numbers, strict=True):
+            # a communication re-sent after a reconnection is acknowledged again: its records
+            # were numbered on the first acknowledgement
+            records = self._by_comm.pop(msg.comm_id, None)
+            if records is None:
+                return
+            for record, number in zip(records, msg.numbers, strict=True):
                 record.status = "received"
                 self._by_number[number] = record
                 for report in self._early.pop(number, []):
