@@ -813,6 +813,17 @@ class Executor:
                                               UntilForce(newtons=s.touch_force), speed=slow), expect_contact=True)
         yield from self._seat_physical(peg, hole, mouth, depth, foot)
         yield from self._centre_over_tool()
+        # the robot's perception of the peg, not the tool's depth: a peg that slid up in the
+        # fingers leaves the tool at the seat and the peg short of it
+        seen = self.world.pegs[peg]
+        T = seen.world_T_peg
+        foot_z = T[2, 3] - T[2, 2] * float(seen.half_size[2])
+        short = (foot_z - (mouth[2] - depth)) if seen.in_hole == hole else None
+        if short is None or short > self.settings.seat_tolerance:
+            self._hold()
+            where = f"{short * 1e3:.1f} mm short of {hole}'s floor" if short is not None else (
+                f"in {seen.in_hole}" if seen.in_hole else "in no hole")
+            raise StepFailure(f"insert_peg: the tool is at the seat but {peg} is {where} (it slid in the fingers?)")
         return f"{peg} seated in {hole}"
 
     def _seat(self, peg: str, hole: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:

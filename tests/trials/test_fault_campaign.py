@@ -114,6 +114,7 @@ def _run(seed: int, **request) -> object:
     (2026000889, "sensor_bias", "the biased sensor ended the descent high; the closing fingers struck the peg (102 N)"),
     (2026000511, "joint_drag", "a drag in a guarded motion ran the arm 5.8 mm off its path unwatched"),
     (2027000056, "link_cut", "the virtual console took the robot's repeated acceptance of a re-sent communication for a new one"),
+    (2028000976, "peg_slip", "the peg slid 27 mm up in the fingers; the tool reached the seat and the robot called it seated"),
 ])
 def test_every_miss_found_while_building_stays_found(seed: int, kind: str, found: str) -> None:
     run = _run(seed)
