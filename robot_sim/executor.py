@@ -547,8 +547,12 @@ class Executor:
         except TeleprogError as exc:  # the simulation diverged while holding
             self.internal_fault(f"physics: {exc}")
             return
-        if self.world.held_peg() is not None and (lost := self.world.lost()) is not None and self.current is not None:
-            self._fail(lost)
+        if self.world.held_peg() is not None and (lost := self.world.lost()) is not None:
+            if self.current is not None:
+                self._fail(lost)
+            elif self.state in (RobotState.IDLE, RobotState.RUNNING):  # dropped while waiting for a statement
+                self.internal_fault(lost)
+                self.own_fault = (HaltCause.OBJECT_LOST, lost)
             return
         if self.state in (RobotState.IDLE, RobotState.RUNNING) and not self.world.asleep and not self._in_task:
             lag = self._following_error(self._held_setpoint())

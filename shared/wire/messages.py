@@ -239,6 +239,7 @@ class HaltCause(str, Enum):
     INTERNAL_ERROR = "internal_error"  # the executor's last-resort boundary caught an error
     SENSOR_FAULT = "sensor_fault"  # a sensor the robot moves by (the wrist force sensor) reads invalid
     FOLLOWING_ERROR = "following_error"  # the arm is not where its joint servo holds it (a joint drags)
+    OBJECT_LOST = "object_lost"  # the held object left the fingers while no statement ran
 
 
 class Halted(_Model):

@@ -28,8 +28,9 @@ def outcome_plot(summary: FaultSummary, path: Path) -> Path:
     fig, (ax, lat) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [3, 2]})
     names = [r.kind for r in rows]
     bottom = [0] * len(rows)
-    for key, colour in _COLOURS.items():
-        values = [getattr(r, key) for r in rows]
+    for key, colour in (*_COLOURS.items(), ("clean", "lightgray")):
+        values = ([r.runs - r.caught - r.missed - r.absorbed - r.false_stops - r.hung for r in rows] if key == "clean"
+                  else [getattr(r, key) for r in rows])
         ax.bar(names, values, bottom=bottom, color=colour, label=key.replace("_", " "))
         bottom = [b + v for b, v in zip(bottom, values, strict=True)]
     ax.set_ylabel("runs")
