@@ -94,6 +94,7 @@ class VirtualDriver:
         self.link_params = link.model_copy(update={"delay_s": delay_s}) if link is not None else LinkParams(delay_s=delay_s)
         self.sent: list[SentRecord] = []  # every record sent, in order
         self.link_losses: list[float] = []  # when a lost message cut the connection (a lossy link)
+        self.last_up_delivery: float | None = None  # when the robot last received anything (ground truth)
         self.robot_said: list[tuple[float, str | None]] = []  # failures and halts as the robot sent them (its clock)
         self.t = 0.0
         self.observers: list[TickObserver] = []  # a fault campaign's injector and judge
@@ -153,6 +154,7 @@ class VirtualDriver:
                 self._reconnect_at = item.up_at
                 continue
             if item.direction is Direction.UP:
+                self.last_up_delivery = self.t
                 data = item.payload
                 replies = self.robot.on_unit(data) if isinstance(data, bytes) else self.robot.on_text(data)
                 for m in replies:

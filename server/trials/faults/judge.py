@@ -77,6 +77,7 @@ class Judge:
         self.stop_at: float | None = None
         self.stop_state = ""
         self.halted: str | None = None
+        self.silent_for: float | None = None
         self._stop_tcp: np.ndarray | None = None
         self._last_tcp: np.ndarray | None = None
         self.stop_distance = 0.0
@@ -119,6 +120,8 @@ class Judge:
             if ex.state in _STOPPED:
                 self.stop_at, self.stop_state = t, ex.state.name.lower()
                 self.halted = ex.halted  # a halt's reason (silence, own faults), even with no console to send it to
+                heard = driver.last_up_delivery
+                self.silent_for = None if heard is None else t - heard
                 self._stop_tcp = self._last_tcp if self._last_tcp is not None else tcp
             else:
                 self._watch_silence(driver, ex, t)
@@ -233,9 +236,13 @@ class Judge:
             outcome, why = "missed", self.missed_how
         elif self.stop_at is not None:
             lost = [t for t in driver.link_losses if t <= self.stop_at]
-            if (f.kind == "none" or applied is None or self.stop_at < applied) and lost:
+            early = f.kind == "none" or applied is None or self.stop_at < applied
+            silent = self.silent_for is not None and self.silent_for >= driver.robot.watch.threshold
+            if early and lost:
                 outcome, why = "caught", f"stopped after the lossy link cut the connection at {lost[0] - self.t0:.2f} s"
-            elif f.kind == "none" or applied is None or self.stop_at < applied:
+            elif early and silent:  # the link itself went silent past the limit (a jittery or stalled line)
+                outcome, why = "caught", f"halted on {self.silent_for:.2f} s of real silence on the link"
+            elif early:
                 outcome, why = "false_stop", "the robot stopped with no fault in the world"
             else:
                 outcome, why = "caught", ""
