@@ -124,6 +124,17 @@ def test_every_miss_found_while_building_stays_found(seed: int, kind: str, found
     assert run.latency_ms is None or run.fault.kind.startswith(("link", "jitter", "console")) or run.latency_ms <= 100.0
 
 
+@pytest.mark.xfail(strict=True, reason="known misses of the 4,000-run campaign, not fixed yet: when one is, move it above")
+@pytest.mark.parametrize(("seed", "kind", "found"), [
+    (2028000159, "joint_drag", "141 N m on joint 3: the PD servo, stopped, holds the arm on the plate with 131 N"),
+    (2026000512, "jam", "the seating push overshoots the 80 N limit to 104 N"),
+])
+def test_the_misses_not_fixed_yet_are_still_missed(seed: int, kind: str, found: str) -> None:
+    run = _run(seed)
+    assert run.fault.kind == kind
+    assert run.outcome != "missed", f"{found}: {run.why}"
+
+
 def test_a_replayed_run_repeats_its_statuses_and_robot_times_exactly() -> None:
     first, again = _run(7000005), _run(7000005)
     assert first.fault.kind == "jam" and first.outcome == "caught"
