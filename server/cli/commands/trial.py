@@ -34,6 +34,33 @@ KINDS = {
 }
 
 
+def check_scheduler(value: str | None) -> None:
+    """``--scheduler``: a Dask scheduler's address, or nothing."""
+    from shared.errors import InputError
+
+    if value is not None and not value.startswith(("tcp://", "tls://", "inproc://", "ws://", "wss://")):
+        raise InputError(f"--scheduler must be a Dask scheduler address such as tcp://127.0.0.1:8786; got {value!r}")
+
+
+def out_folder(value: str | None) -> Path | None:
+    """``--out``: a folder to write into (made when missing), not a file."""
+    from shared.errors import InputError
+
+    out = Path(value) if value else None
+    if out is not None and out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")
+    return out
+
+
+def flag_error(exc) -> Exception:
+    """A request model's ``ValidationError`` as one line naming the flag of its first field."""
+    from shared.errors import InputError
+
+    first = exc.errors()[0]
+    flag = "--" + str(first["loc"][0]).replace("_", "-")
+    return InputError(f"{flag}: {first['msg']}")
+
+
 def _request(args: argparse.Namespace):
     """The batch the flags ask for; a bad value is one line naming its flag."""
     from pydantic import ValidationError
@@ -50,11 +77,8 @@ def _request(args: argparse.Namespace):
         raise InputError(f"--seed must be 0 or more; got {args.seed}")
     if not 1 <= args.workers <= MAX_WORKERS:
         raise InputError(f"--workers must be between 1 and {MAX_WORKERS}; got {args.workers}")
-    if args.scheduler is not None and not args.scheduler.startswith(("tcp://", "tls://", "inproc://", "ws://", "wss://")):
-        raise InputError(f"--scheduler must be a Dask scheduler address such as tcp://127.0.0.1:8786; got {args.scheduler!r}")
-    out = Path(args.out) if args.out else None
-    if out is not None and out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
+    check_scheduler(args.scheduler)
+    out = out_folder(args.out)
     try:
         world = TrialWorld(engine=args.world, object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n,
                            grasp_tilt_deg=args.grasp_tilt_deg, friction=args.friction, clearance_mm=args.clearance_mm)
@@ -62,9 +86,7 @@ def _request(args: argparse.Namespace):
                                clock=args.clock, modes=tuple(args.mode) if args.mode else None, world=world,
                                workers=args.workers, scheduler=args.scheduler)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        flag = "--" + str(first["loc"][0]).replace("_", "-")
-        raise InputError(f"{flag}: {first['msg']}") from None
+        raise flag_error(exc) from None
     return request, out
 
 

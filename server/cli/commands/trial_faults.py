@@ -26,7 +26,8 @@ def _request(args: argparse.Namespace):
 
     from server.trials.batch import TrialWorld
     from server.trials.faults.campaign import MAX_RUNS, CampaignRequest
-    from server.trials.faults.catalogue import FAULT_KINDS
+    from server.cli.commands.trial import check_scheduler, flag_error, out_folder
+    from server.trials.faults.catalogue import FAULT_KINDS, check_kinds
     from shared.errors import InputError
 
     if args.clock != "virtual":
@@ -36,26 +37,18 @@ def _request(args: argparse.Namespace):
     for flag, value in (("--delay-ms", args.delay_ms), ("--jitter-ms", args.jitter_ms), ("--drop-probability", args.drop_probability)):
         if not math.isfinite(value) or value < 0:
             raise InputError(f"{flag} must be a finite number, 0 or more; got {value:g}")
-    kinds = tuple(args.kind) if args.kind else FAULT_KINDS
-    bad = [k for k in kinds if k not in FAULT_KINDS]
-    if bad:
-        raise InputError(f"--kind {bad[0]}: not a fault kind; kinds: {', '.join(FAULT_KINDS)}")
+    kinds = check_kinds(tuple(args.kind) if args.kind else FAULT_KINDS)
     if args.program is not None and not Path(args.program).is_file():
         raise InputError(f"--program {args.program}: no such file")
-    if args.scheduler is not None and not args.scheduler.startswith(("tcp://", "tls://", "inproc://", "ws://", "wss://")):
-        raise InputError(f"--scheduler must be a Dask scheduler address such as tcp://127.0.0.1:8786; got {args.scheduler!r}")
-    out = Path(args.out) if args.out else None
-    if out is not None and out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
+    check_scheduler(args.scheduler)
+    out = out_folder(args.out)
     try:
         world = TrialWorld(object_offset_mm=args.object_offset_mm, force_noise_n=args.force_noise_n)
         request = CampaignRequest(runs=args.runs, seed=args.seed, delay_ms=args.delay_ms, jitter_ms=args.jitter_ms,
                                   drop_probability=args.drop_probability, program=args.program, mode=args.mode,
                                   kinds=kinds, world=world, workers=args.workers, scheduler=args.scheduler)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        flag = "--" + str(first["loc"][0]).replace("_", "-")
-        raise InputError(f"{flag}: {first['msg']}") from None
+        raise flag_error(exc) from None
     return request, out
 
 
@@ -66,7 +59,7 @@ def _cmd_faults(args: argparse.Namespace) -> int:
 
     request, out = _request(args)
     if not getattr(args, "verbose", False):  # a line per fault from the robot's log would drown the table
-        for name in ("robot_sim", "robot_sim.executor", "robot_sim.core", "distributed"):
+        for name in ("robot_sim", "distributed"):
             logging.getLogger(name).setLevel(logging.ERROR)
     cell = str(Path(args.cell) if args.cell else DEFAULT_CELL)
     from server.trials.faults.campaign import program_texts

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.trials.batch import TrialWorld, open_executor
-from server.trials.faults.catalogue import FAULT_KINDS, CleanTrace, Fault, draw_fault
+from server.trials.faults.catalogue import FAULT_KINDS, CleanTrace, Fault, check_kinds, draw_fault
 from server.trials.faults.inject import Injector
 from server.trials.faults.judge import SETTLE_S, Judge, RunOver
 from server.trials.faults.results import FaultRun, FaultStatement
@@ -236,9 +236,7 @@ def _raised(spec: GroupSpec, index: int, fault: Fault, exc: Exception) -> FaultR
 
 def group_specs(request: CampaignRequest, cell: str, indices: Sequence[int]) -> list[GroupSpec]:
     texts = program_texts(cell, request.program)
-    bad = [k for k in request.kinds if k not in FAULT_KINDS]
-    if bad:
-        raise InputError(f"--kind {bad[0]}: not a fault kind; kinds: {', '.join(FAULT_KINDS)}")
+    check_kinds(request.kinds)
     groups: dict[int, list[int]] = {}
     for i in indices:
         groups.setdefault(i // GROUP, []).append(i)

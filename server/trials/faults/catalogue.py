@@ -48,6 +48,16 @@ BLINDING_KINDS = frozenset(("sensor_dropout",))
 A biased sensor is judged as a change of the world: by the force the robot really exerts."""
 
 
+def check_kinds(kinds: tuple[str, ...]) -> tuple[str, ...]:
+    """``kinds`` if every one is in the catalogue; an ``InputError`` naming the first that is not."""
+    from shared.errors import InputError
+
+    bad = [k for k in kinds if k not in FAULT_KINDS]
+    if bad:
+        raise InputError(f"--kind {bad[0]}: not a fault kind; kinds: {', '.join(FAULT_KINDS)}")
+    return kinds
+
+
 class Fault(BaseModel):
     """One run's fault (kind ``none``: a fault-free run)."""
 
@@ -84,16 +94,12 @@ class CleanTrace:
     ticks: dict[int, int] = field(default_factory=dict)  # tick number -> row
     tcp: list[tuple[float, float, float]] = field(default_factory=list)
     finger: list[float] = field(default_factory=list)
-    force: list[float] = field(default_factory=list)
-    held: list[bool] = field(default_factory=list)
     end_holes: dict[str, str | None] = field(default_factory=dict)  # object -> hole at the end
 
-    def add(self, t: float, tcp, finger: float, force: float, held: bool) -> None:
+    def add(self, t: float, tcp, finger: float) -> None:
         self.ticks[int(round(t / self.dt))] = len(self.tcp)
         self.tcp.append(tuple(float(v) for v in tcp))
         self.finger.append(float(finger))
-        self.force.append(float(force))
-        self.held.append(bool(held))
 
     def row(self, t: float) -> int | None:
         return self.ticks.get(int(round(t / self.dt)))

@@ -71,7 +71,6 @@ class Judge:
         self.peak = 0.0
         self.peak_what = ""
         self.harm_at: float | None = None
-        self.harm_what = ""
         self.onset: float | None = None
         self.onset_how = ""
         self.stop_at: float | None = None
@@ -105,14 +104,14 @@ class Judge:
         if load > self.peak:
             self.peak, self.peak_what = load, what
         if load > self.damage and self.harm_at is None:
-            self.harm_at, self.harm_what = t, what
+            self.harm_at = t
         tcp = np.array(world.data.site_xpos[world._tcp_site])
         if ex.busy:
             self.last_busy = t
         if ex.current is not None and ex.current[0] != self._task_number and _is_task(ex.current[1]):
             self._task_number, self.last_task_start = ex.current[0], t
         if self.record is not None:
-            self.record.add(t, tcp, world.finger_opening(), load, world.held_peg() is not None)
+            self.record.add(t, tcp, world.finger_opening())
         if self.stop_at is None and ex.state not in _STOPPED:
             self._watch_path(world, ex, t)
         self._watch_onset(driver, t, load)
@@ -141,7 +140,7 @@ class Judge:
             return
         ex = driver.robot.executor
         if self.fault.kind in LINK_KINDS:  # the silence shows once a heartbeat is overdue at a busy robot
-            heard = getattr(driver.link, "last_up_delivery", None)
+            heard = driver.last_up_delivery
             if heard is not None and ex.busy and t - heard > driver.robot.heartbeat_s + driver.dt:
                 self.onset, self.onset_how = t, "a heartbeat overdue at a busy robot"
             return
@@ -188,11 +187,10 @@ class Judge:
                                f"{t - self._off_since:.2f} s without stopping")
 
     def _watch_silence(self, driver, ex, t: float) -> None:
-        link = getattr(driver.link, "last_up_delivery", None)
         inj = self.injector
         if inj is None or inj.link is None or self.missed_how:
             return
-        heard = link if link is not None else self.t0
+        heard = driver.last_up_delivery if driver.last_up_delivery is not None else self.t0
         if not ex.busy or ex.state not in (RobotState.IDLE, RobotState.RUNNING):
             return
         limit = driver.robot.watch.threshold + SILENCE_MARGIN_S

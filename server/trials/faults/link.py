@@ -12,7 +12,7 @@
   robot sees its connection close, and the console connects again ``duration`` later (hello,
   welcome and the re-sending of whatever was not acknowledged, as a real console does).
 
-It also keeps the ground truth the judge needs: when the robot last received anything.
+(When the robot last received anything, the judge reads from the session: ``last_up_delivery``.)
 """
 
 from __future__ import annotations
@@ -41,8 +41,6 @@ class FaultyLink:
         self._on_reconnect = on_reconnect
         self._cut_done = False
         self._reconnected = False
-        self.last_up_delivery: float | None = None
-        self.lost = 0
         self._now = -math.inf
 
     def _stalled(self, t: float, direction: Direction) -> bool:
@@ -50,8 +48,7 @@ class FaultyLink:
 
     def send(self, now: float, direction: Direction, payload: bytes | str, size: int | None = None) -> float | None:
         if self.kind == "cut" and self.start <= now < self.end:
-            self.lost += 1  # the connection is down: nothing goes out on it
-            return None
+            return None  # the connection is down: nothing goes out on it
         if self._stalled(now, direction):
             now = self.end  # waits in the sender's buffer until the stall ends
         elif self.kind == "jitter" and self.start <= now < self.end:
@@ -68,7 +65,7 @@ class FaultyLink:
         out: list[Delivery | LinkFault] = []
         if self.kind == "cut" and now >= self.start and not self._cut_done:
             self._cut_done = True
-            self.lost += self.inner.cut()
+            self.inner.cut()
             if self._on_cut is not None:
                 self._on_cut()
         if self.kind == "cut" and now >= self.end and self._cut_done and not self._reconnected:
@@ -82,10 +79,4 @@ class FaultyLink:
                 self._held.append(item)
             else:
                 out.append(item)
-        for item in out:
-            if isinstance(item, Delivery) and item.direction is Direction.UP:
-                self.last_up_delivery = now
         return out
-
-    def cut(self) -> int:
-        return self.inner.cut()
