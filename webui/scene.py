@@ -41,10 +41,19 @@ class CellScene:
         self._data = self.robot.new_data()  # the scene's own pinocchio data (model vs data)
         server.scene.set_up_direction("+z")
         # no shadow maps: each light re-renders the scene for them in every frame. Measured in
-        # headless Chromium (software WebGL) while dragging: 1.4 -> 2.8 drawn frames/s. (Dropping
-        # the environment map as well doubles it again, but viser's added ambient and hemisphere
-        # lights did not light the sides then: the cell turned black; kept.)
+        # headless Chromium (software WebGL) while dragging: 1.4 -> 2.8 drawn frames/s.
         server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        # No environment map either: its image-based lighting is most of a frame's cost where the
+        # page draws in software (a console opened on a machine without a GPU, which viser warns
+        # of, and headless Chromium): the page's idle redraw (viser's 1 s heartbeat) took 0.38 of
+        # a core with it and 0.20 without, in the same minutes. A sky light and a key and a fill
+        # light from two sides light every face of the cell instead; with the default lights
+        # alone the sides turned black.
+        server.scene.configure_environment_map(None)
+        server.scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255), ground_color=(120, 110, 100),
+                                          intensity=1.2)
+        server.scene.add_light_directional("/lights/key", intensity=2.2, position=(1.5, -2.5, 3.0))
+        server.scene.add_light_directional("/lights/fill", intensity=0.9, position=(-2.0, 1.5, 1.0))
         server.scene.add_grid("/floor", width=3.0, height=3.0, cell_size=0.1, position=(0.0, 0.0, 0.0))
         self.body_nodes: dict[str, str] = {}
         self.body_meshes: dict[str, BodyMesh] = {}
