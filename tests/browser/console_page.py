@@ -14,7 +14,7 @@ from playwright.sync_api import Error as PlaywrightError
 from playwright.sync_api import Locator, Page
 from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
-from support import DRAG_EFFECT_S, PAGE_WAIT_S, wait_for  # noqa: F401 - the page tests import wait_for from here too
+from support import DRAG_EFFECT_S, PAGE_DPR, PAGE_WAIT_S, wait_for  # noqa: F401 - the page tests import wait_for from here too
 
 def option_name(label: str, option: str) -> str:
     """The text of a dropdown's option for ``option``: the Regime selector names a regime in the
@@ -71,14 +71,17 @@ class ConsolePage:
 
     # -- page --------------------------------------------------------------------------------
     def open(self, query: str = "", camera: str = "tool") -> None:
-        """Open the console's page; ``query`` (e.g. ``"fixedDpr=0.1"``) goes to viser's page.
+        """Open the console's page; ``query`` (e.g. ``"fixedDpr=0.1"``) goes to viser's page, which
+        draws at ``support.PAGE_DPR`` unless the query says otherwise.
         ``camera="tool"``: the page starts looking at the tool from ``CAMERA_OFFSET`` (the
         terrain's offset in a terrain cell), world x to the right, so the gizmo's handles lie
         where ``drag_gizmo_x`` and the tests' projections expect them; ``"default"``: the
         console's own camera, which frames the cell's work (``shared.cells.framing``)."""
         if camera == "tool":
             query = "&".join(q for q in (query, self.tool_camera_query()) if q)
-        self.page.goto(self.console.url + ("/viser/?" + query if query else "/"))
+        if "fixedDpr=" not in query:
+            query = "&".join(q for q in (query, f"fixedDpr={PAGE_DPR}") if q)
+        self.page.goto(self.console.url + "/viser/?" + query)
         self.page.wait_for_selector("canvas", timeout=PAGE_WAIT_S * 1000)
         self.page.get_by_role("button", name="STOP").wait_for(timeout=PAGE_WAIT_S * 1000)
         self.dismiss_notices(wait=15.0)

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from console_page import ConsolePage
 from playwright.sync_api import Page
-from support import RunningConsole, record_three_statements, start_console, start_served, stop_process, wait_for
+from support import PAGE_DPR, RunningConsole, record_three_statements, start_console, start_served, stop_process, wait_for
 
 from server.recording import records
 from server.recording.reader import read_recording
@@ -51,7 +51,7 @@ def replay(recorded: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
 
 def _open(page: Page, replay: RunningConsole) -> ConsolePage:
     ui = ConsolePage(page, replay)
-    page.goto(replay.url + "/")
+    page.goto(f"{replay.url}/viser/?fixedDpr={PAGE_DPR}")
     page.get_by_role("button", name="Next event").wait_for(timeout=60_000)
     ui.dismiss_notices(wait=5.0)
     return ui
