@@ -9,6 +9,13 @@ The Task tab (issue 18) follows it: the preview's steps show the task actions th
 after another, and while the robot runs the file its reports add grasp, part, mate and release
 to the robot's list one by one, the robot's marking moving from HOLE1 to HOLE2.
 
+The same walk is issue 37's "Done when" from the page (success that looks like success): after
+the last statement no divergence warning shows at any moment (the insertion's end is the robot's
+to report, within the task's declared tolerance, and the console takes it), the virtual arm
+stands within 1 mm of the robot's reported tool, and the Task tab's two markings are equal (the
+peg in HOLE2, the hand empty) with no deviation. (One walk, one console: it was two tests on two
+consoles, each sending the same file over the same 3 s link.)
+
 Before issue 16 the upload was refused ("statement 6 follows the task call at statement 5"): the
 editor let nothing follow any task call while ``teleprog check`` accepted the file. Both now read
 one rule (``shared.language.task_rule``). The session's state is read through GET requests only.
@@ -60,6 +67,7 @@ def upload_program(ui: ConsolePage, path) -> None:
 
 
 TASK_ACTIONS = ["grasp(PEG)", "part(PEG,HOLE1)", "mate(PEG,HOLE2)", "release(PEG)"]
+AFTER = ["HANDEEMPTY", "PEGFREE(PEG)", "PEGINHOLE(PEG,HOLE2)", "HOLEEMPTY(HOLE1)"]
 
 
 def distinct(seen: list[list[str]], now: list[str]) -> None:
@@ -138,3 +146,23 @@ def test_the_shipped_peg_transfer_from_the_page_in_one_piece(ui: ConsolePage) ->
     np.testing.assert_allclose(peg_now[:2, 3], hole2[:2, 3], atol=0.003)  # the peg stands in HOLE2
     foot_z = peg_now[2, 3] - 0.040  # the 80 mm peg's foot, as the physics left it
     assert foot_z < hole2[2, 3] - 0.029, f"the peg's foot is {1e3 * (hole2[2, 3] - foot_z):.1f} mm into the 30 mm hole"
+
+    # one truth: the console took the insertion's end as the program's start, so once the robot
+    # rests the virtual arm stands within 1 mm of it and no divergence is told
+    api = ui.console.api
+
+    def at_rest_in_step():
+        remote, arm, divergence = (api("GET", p).json() for p in ("/api/remote", "/api/arm", "/api/divergence"))
+        if remote["state"] != "idle" or not divergence["checked"]:
+            return None
+        gap = np.linalg.norm(np.asarray(arm["world_T_tcp"])[:3, 3] - np.asarray(remote["world_T_tcp"])[:3, 3])
+        return divergence if gap < 1e-3 else None
+
+    divergence = wait_for(at_rest_in_step, timeout=30, what="the virtual arm within 1 mm of the robot at rest")
+    assert not divergence["diverged"], divergence
+    assert not ui.page.get_by_text("Divergence:").is_visible()
+    ui.tab("Task")
+    wait_for(lambda: ui.task_marking("robot") == AFTER, timeout=30, what="the robot's marking with the peg in HOLE2")
+    assert ui.task_marking("virtual") == ui.task_marking("robot") == AFTER
+    assert ui.page.locator("[data-deviation]").count() == 0
+    assert api("GET", "/api/task").json()["deviations"] == []

@@ -5,14 +5,20 @@ extraction's 40 N: nothing scripts the outcome). The operator types
 the approach and grasp and sends them, then the extraction; the robot's grasp shows on the Task
 tab, the extraction fails, and the tab shows a task deviation in red naming the transition that
 was expected, ``part(PEG,HOLE1)``. The page is driven with mouse and keyboard only; the session
-is read through GET requests to check what the page showed.
+is read through GET requests to check what the page showed, and the API's side of the same
+deviation (the failed statement's reason, what the robot observed, the event on ``/api/events``)
+is checked on the same run (it was a second console in ``tests/e2e``, walking the same path).
 """
 
 from __future__ import annotations
 
+import json
+import threading
 from collections.abc import Iterator
 
 import pytest
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect as connect_ws
 from console_page import ConsolePage, wait_for
 from support import RunningConsole, screenshot_if_failed, start_console, stop_process
 
@@ -45,7 +51,33 @@ def ui(sticky_console: RunningConsole, chromium, request) -> Iterator[ConsolePag
     context.close()
 
 
+def task_events(url: str) -> tuple[list[dict], object]:
+    """The ``task`` events of the console's ``/api/events`` as they come, and the socket to close."""
+    seen: list[dict] = []
+    ws = connect_ws(url.replace("http", "ws", 1) + "/api/events", max_size=None)
+
+    def listen() -> None:
+        try:
+            for raw in ws:
+                event = json.loads(raw)
+                if event.get("type") == "task":
+                    seen.append(event)
+        except ConnectionClosed:
+            pass
+
+    threading.Thread(target=listen, daemon=True).start()
+    return seen, ws
+
+
 def test_a_stuck_peg_shows_a_task_deviation_on_the_task_tab(ui: ConsolePage) -> None:
+    seen, ws = task_events(ui.console.url)
+    try:
+        walk_to_the_deviation(ui, seen)
+    finally:
+        ws.close()
+
+
+def walk_to_the_deviation(ui: ConsolePage, seen: list[dict]) -> None:
     ui.text_appears(r"Link: connected", timeout=30)
     ui.text_appears(r"robot idle", timeout=30)
     ui.choose_regime("free")
@@ -75,3 +107,13 @@ def test_a_stuck_peg_shows_a_task_deviation_on_the_task_tab(ui: ConsolePage) -> 
     # state between "in the hole" and "out" may be flagged too, expecting the same transition
     assert [d["expected"] for d in task["deviations"] if d["kind"] == "missing"] == ["part(PEG,HOLE1)"]
     assert {d["expected"] for d in task["deviations"]} == {"part(PEG,HOLE1)"}
+    # the robot failed the extraction itself, saying why, and the deviation names that statement
+    # and what the robot observed: the peg still in HOLE1
+    last = ui.console.api("GET", "/api/sent").json()["items"][-1]
+    assert last["status"] == "failed" and "stuck" in last["reason"], last
+    missing = next(d for d in task["deviations"] if d["kind"] == "missing")
+    assert missing["status"] == "failed" and missing["statement"] == last["number"], missing
+    assert missing["observed"]["PEGINHOLE(PEG,HOLE1)"] is True and missing["observed"]["HOLEEMPTY(HOLE1)"] is False
+    assert "HOLDING(PEG)" in task["robot_marking"] and "PEGINHOLE(PEG,HOLE1)" in task["robot_marking"]
+    wait_for(lambda: any(e.get("task", {}).get("deviations") for e in seen), timeout=10,
+             what="the deviation on /api/events")
