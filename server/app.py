@@ -75,7 +75,8 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        session = Session(cell, SessionSettings(strict_editing=settings.strict_editing))
+        session = Session(cell, SessionSettings(strict_editing=settings.strict_editing,
+                                                 handover_timeout_s=settings.handover_timeout_s))
         if children is not None:
             session.link.watch_children(children)
         recorder = record_session(session, settings, started_link=children is not None)

@@ -39,6 +39,9 @@ class ConsoleSettings(BaseSettings):
     strict_editing: bool = Field(
         False, description="the editor keeps the thesis's editing rules (§4.3.6) instead of free editing (--strict-editing)",
     )
+    handover_timeout_s: float = Field(
+        30.0, gt=0.0, description="a request for control the holder neither hands over nor refuses passes control after this, s",
+    )
     no_robot: bool = Field(False, description="console only: no robot, no link (nothing can be submitted)")
     delay_ms: float = Field(3000.0, ge=0.0, description="delay of the started link, each way, ms")
     robot_port: int = Field(0, ge=0, le=65535, description="port of the started telerobot (0: any free)")

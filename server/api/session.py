@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import ApiIn
 from server.console import (
+    ControlAskGrant,
     ControlGrant,
     ControlView,
     DisplayMode,
@@ -66,6 +67,30 @@ def takeover_control(session: SessionDep, client: ClientDep) -> ControlGrant:
 def release_control(session: SessionDep, client: ClientDep) -> ControlView:
     """Give the lock back; needs the holder's token (X-Teleprog-Token)."""
     return session.control.release(client)
+
+
+@router.post("/control/ask", response_model=ControlAskGrant)
+def ask_control(session: SessionDep, client: ClientDep) -> ControlAskGrant:
+    """Ask the holder for control (name yourself with X-Teleprog-Client): every page shows the
+    request; the holder hands over or refuses, and if it says nothing for the console's hand-over
+    timeout (``asked.passes_at``) control passes to you. The answer's token is yours to present
+    once ``GET /api/control`` names you the holder. Nobody holding control: taken at once. 409 while
+    another client's request waits."""
+    if client.name is None:
+        raise InputError("name yourself with the X-Teleprog-Client header to ask for control")
+    return session.control.ask(client)
+
+
+@router.post("/control/handover", response_model=ControlView)
+def hand_over_control(session: SessionDep, client: ClientDep) -> ControlView:
+    """The holder (X-Teleprog-Token) hands control to the client that asked for it."""
+    return session.control.hand_over(client)
+
+
+@router.post("/control/refuse", response_model=ControlView)
+def refuse_control(session: SessionDep, client: ClientDep) -> ControlView:
+    """The holder (X-Teleprog-Token) refuses the pending request and keeps control."""
+    return session.control.refuse(client)
 
 
 @router.get("/regime", response_model=RegimeView)

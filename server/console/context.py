@@ -62,6 +62,8 @@ class SessionSettings:
     generator: GeneratorSettings = field(default_factory=GeneratorSettings)
     auto_generate: bool = True
     """Automatic generation is on when the session starts: the first drag records statements."""
+    handover_timeout_s: float = 30.0
+    """s: a request for control the holder neither hands over nor refuses passes control after this."""
     strict_editing: bool = False
     """The program editor starts with the thesis's editing rules (§4.3.6) instead of free editing
     (``shared.program.editor``); the page and ``PUT /api/program/editing`` switch it."""

@@ -5,6 +5,12 @@ lock only calls presenting that token change anything (STOP excepted: anybody ma
 robot). An explicit take-over is logged and shown to the former holder. Views and events name the
 holder by its label, never its token. A bare name or ``None`` (the page served by this console)
 presents no token.
+
+Hand-over (a team at one console): another client asks for control and gets the token it will
+hold; the holder hands over or refuses, and if it says nothing for ``handover_timeout_s`` control
+passes to the asker (a holder who walked away must not keep the robot from its team). Every
+change, asked, handed over, refused, passed on silence, is a control event and a notice on every
+page, and so in the recording.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import secrets
 from server.console.context import ConsoleContext
 from server.console.errors import ControlLockError
 from server.console.events import ControlChanged, Notice, SessionEvent
-from server.console.views import Caller, ControlGrant, ControlTakeover, ControlView
+from server.console.views import Caller, ControlAsk, ControlAskGrant, ControlGrant, ControlTakeover, ControlView
 from shared.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -37,11 +43,14 @@ class ControlLock:
         self._since: float | None = None
         self._token: str | None = None
         self._takeover: ControlTakeover | None = None
+        self._ask: ControlAsk | None = None
+        self._ask_token: str | None = None
+        self._ask_deadline: float | None = None  # ctx.clock() s when control passes on silence
 
     def view(self) -> ControlView:
         """Who holds control, as everybody may see it: the holder's label, never its token."""
         with self._ctx.lock:
-            return ControlView(holder=self._holder, since=self._since, last_takeover=self._takeover)
+            return ControlView(holder=self._holder, since=self._since, last_takeover=self._takeover, asked=self._ask)
 
     @property
     def holder(self) -> Caller:
@@ -79,6 +88,8 @@ class ControlLock:
             if self._holder is not None and self._presents_token(caller):
                 return self._grant()
             former = self._holder
+            voided = self._ask.by if self._ask is not None else None
+            self._clear_ask()
             self._give(caller.name)
             if former is not None:
                 self._takeover = ControlTakeover(by=caller.name, former=former, at=self._since)
@@ -89,6 +100,8 @@ class ControlLock:
             events.append(Notice(level="warning", message=f"control taken over by {caller.name!r} from {former!r}"))
         else:
             log.info("control taken by %r (nobody held it)", caller.name)
+        if voided is not None and voided != caller.name:
+            events.append(Notice(level="info", message=f"{voided!r}'s request for control ended: {caller.name!r} took over"))
         self._ctx.bus.emit(events)
         return grant
 
@@ -103,10 +116,105 @@ class ControlLock:
                 raise ControlLockError(self._refusal(caller, "release control"))
             former = self._holder
             self._holder = self._since = self._token = None
-        log.info("control released by %r", former)
+            if self._ask is not None:  # somebody asked for it: released is handed over
+                events = self._pass_to_asker(f"control released by {former!r}: handed to {self._ask.by!r}, who asked")
+            else:
+                log.info("control released by %r", former)
+                events = [ControlChanged(control=self.view())]
+        self._ctx.bus.emit(events)
+        return self.view()
+
+    # -- hand-over -------------------------------------------------------------------------------
+    def ask(self, client: Caller | str) -> ControlAskGrant:
+        """Ask the holder for control (a non-empty name). Nobody holding it: taken at once. The
+        answer's token becomes the holder's when control passes (see the module docstring).
+        Refused while another client's request waits; asking again with the token repeats the answer."""
+        caller = as_caller(client)
+        if not caller.name:
+            raise InputError("a client name is needed to ask for control (header X-Teleprog-Client)")
+        with self._ctx.lock:
+            free = self._holder is None
+        if free:  # (request() refuses should another take it in between)
+            return ControlAskGrant(**self.request(caller).model_dump())
+        with self._ctx.lock:
+            if self._presents_token(caller):
+                return ControlAskGrant(**self._grant().model_dump())
+            if self._ask is not None:
+                if self._ask_token is not None and caller.token is not None and secrets.compare_digest(
+                        caller.token.encode(), self._ask_token.encode()):
+                    return self._ask_grant()
+                raise ControlLockError(
+                    f"{self._ask.by!r} already asked {self._holder!r} for control; ask once that request is "
+                    "answered, or take over explicitly with POST /api/control/takeover")
+            timeout = self._ctx.settings.handover_timeout_s
+            now = self._ctx.wall_clock()
+            self._ask = ControlAsk(by=caller.name, at=now, passes_at=now + timeout)
+            self._ask_token = secrets.token_urlsafe(16)
+            self._ask_deadline = self._ctx.clock() + timeout
+            holder, answer = self._holder, self._ask_grant()
+        log.info("%r asks %r for control", caller.name, holder)
+        self._ctx.bus.emit([
+            ControlChanged(control=self.view()),
+            Notice(level="warning", message=f"{caller.name!r} asks {holder!r} for control: hand over or refuse; "
+                                            f"it passes in {timeout:g} s if {holder!r} says nothing"),
+        ])
+        return answer
+
+    def hand_over(self, client: Caller | str | None) -> ControlView:
+        """The holder consents: control passes to the client that asked."""
+        with self._ctx.lock:
+            self._answerable(as_caller(client), "hand over control")
+            events = self._pass_to_asker(f"control handed over by {self._holder!r} to {self._ask.by!r}")
+        self._ctx.bus.emit(events)
+        return self.view()
+
+    def refuse(self, client: Caller | str | None) -> ControlView:
+        """The holder refuses the pending request; it keeps control."""
+        with self._ctx.lock:
+            self._answerable(as_caller(client), "refuse the request for control")
+            asker = self._ask.by
+            self._clear_ask()
+            holder = self._holder
+        log.info("%r refused %r's request for control", holder, asker)
         view = self.view()
-        self._ctx.bus.emit([ControlChanged(control=view)])
+        self._ctx.bus.emit([ControlChanged(control=view),
+                            Notice(level="info", message=f"{holder!r} keeps control: {asker!r}'s request refused")])
         return view
+
+    def tick(self) -> None:
+        """On the session's clock: a request the holder left unanswered past its timeout passes control."""
+        with self._ctx.lock:
+            if self._ask is None or self._ask_deadline is None or self._ctx.clock() < self._ask_deadline:
+                return
+            holder, asker = self._holder, self._ask.by
+            events = self._pass_to_asker(f"{holder!r} did not answer {asker!r}'s request for control within "
+                                         f"{self._ctx.settings.handover_timeout_s:g} s: control passed to {asker!r}")
+        self._ctx.bus.emit(events)
+
+    def _answerable(self, caller: Caller, what: str) -> None:
+        if self._ask is None:
+            raise ControlLockError(f"nobody asked for control: nothing to {what.split(' ')[0]}")
+        if not self._presents_token(caller):
+            raise ControlLockError(self._refusal(caller, what) if self._holder is not None
+                                   else f"nobody holds control: cannot {what}")
+
+    def _pass_to_asker(self, why: str) -> list[SessionEvent]:
+        """Give control to the asker with the token it was given (under the lock); the events to
+        publish once the lock is released."""
+        assert self._ask is not None and self._ask_token is not None
+        asker, token = self._ask.by, self._ask_token
+        self._clear_ask()
+        self._holder, self._since, self._token = asker, self._ctx.wall_clock(), token
+        log.info(why)
+        return [ControlChanged(control=self.view()), Notice(level="warning", message=why)]
+
+    def _clear_ask(self) -> None:
+        self._ask = self._ask_token = self._ask_deadline = None
+
+    def _ask_grant(self) -> ControlAskGrant:
+        assert self._ask_token is not None
+        return ControlAskGrant(holder=self._holder, since=self._since, last_takeover=self._takeover,
+                               asked=self._ask, token=self._ask_token)
 
     def holds(self, client: Caller | str | None) -> bool:
         """Whether the caller holds control (presents the holder's token); nobody does while it is
@@ -131,7 +239,8 @@ class ControlLock:
 
     def _grant(self) -> ControlGrant:
         assert self._token is not None
-        return ControlGrant(holder=self._holder, since=self._since, last_takeover=self._takeover, token=self._token)
+        return ControlGrant(holder=self._holder, since=self._since, last_takeover=self._takeover, asked=self._ask,
+                            token=self._token)
 
     def _presents_token(self, caller: Caller) -> bool:
         return (

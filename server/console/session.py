@@ -155,9 +155,11 @@ class Session:
         self.dispatch.attach(robot, loop)
 
     def tick(self) -> None:
-        """What runs on the console's clock: a playing preview and the link view's timer."""
+        """What runs on the console's clock: a playing preview, the link view's timer and a
+        request for control waiting on its holder."""
         self.preview.tick()
         self.link.tick()
+        self.control.tick()
 
     def start_clock(self) -> threading.Thread:
         """Tick at the preview's player rate for the console's lifetime, on a thread of its own:

@@ -44,6 +44,8 @@ __all__ = [
     "ControlTakeover",
     "ControlView",
     "ControlGrant",
+    "ControlAsk",
+    "ControlAskGrant",
     "TerrainSensorsView",
     "TerrainView",
     "PlacementCandidateView",
@@ -333,18 +335,36 @@ class ControlTakeover(_View):
     at: float = Field(description="when, Unix s")
 
 
+class ControlAsk(_View):
+    """A pending request for control: the holder hands over or refuses; if it says nothing, control
+    passes to the asker at ``passes_at``."""
+
+    by: str = Field(description="label of the client that asked")
+    at: float = Field(description="when it asked, Unix s")
+    passes_at: float = Field(description="when control passes to it unless the holder refuses first, Unix s")
+
+
 class ControlView(_View):
-    """Who holds the control lock (a label, never the token) and the last take-over."""
+    """Who holds the control lock (a label, never the token), a pending request and the last take-over."""
 
     holder: str | None = Field(None, description="the holder's X-Teleprog-Client name; null: nobody holds control")
     since: float | None = Field(None, description="Unix s")
     last_takeover: ControlTakeover | None = None
+    asked: ControlAsk | None = Field(None, description="a request for control waiting on the holder")
 
 
 class ControlGrant(ControlView):
     """The answer to the caller that now holds control: the view and its token (never published)."""
 
     token: str = Field(description="present it as the X-Teleprog-Token header on every call that changes state, and to release")
+
+
+class ControlAskGrant(ControlView):
+    """The answer to a client that asked for control: the view and the token that becomes the
+    holder's once control passes to it (handed over, or the holder silent past ``asked.passes_at``);
+    until then it changes nothing. Asking while nobody holds control takes it at once."""
+
+    token: str = Field(description="the X-Teleprog-Token to present once the view's holder is this client")
 
 
 class TerrainSensorsView(_View):

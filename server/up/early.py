@@ -43,7 +43,7 @@ def settings_from_args(args: argparse.Namespace) -> ConsoleSettings:
         sedimentation=True if get("sedimentation") else None, restart_children=False if get("no_restart") else None,
         record=False if get("no_record") else None, record_dir=get("record"),
         fault_injection=True if get("fault_injection") else None, robot_credential_file=get("robot_credential_file"),
-        strict_editing=True if get("strict_editing") else None,
+        strict_editing=True if get("strict_editing") else None, handover_timeout_s=get("handover_timeout_s"),
     )
 
 

@@ -34,6 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     up.add_argument("--strict-editing", action="store_true", default=None,
                     help="keep the thesis's editing rules (§4.3.6): refuse edits that break them (default: free editing)")
+    up.add_argument("--handover-timeout-s", type=float, default=None, metavar="S",
+                    help="a request for control the holder does not answer passes control after S s (default 30)")
     rec = up.add_mutually_exclusive_group()
     up.add_argument("--fault-injection", action="store_true",
                     help="serve /api/faults: the console misbehaves on request (tests, surprise campaigns)")
