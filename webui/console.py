@@ -27,6 +27,7 @@ from server.console import (
     ArmView,
     CollisionChanged,
     CollisionView,
+    ControlChanged,
     DisplayMode,
     DisplayModeChanged,
     DivergenceChanged,
@@ -192,6 +193,8 @@ class Console:
             self._draw_terrain()
         elif isinstance(event, DivergenceChanged):
             self.status.show_divergence(event.divergence)
+        elif isinstance(event, ControlChanged):
+            self.status.show_control(event.control)
         elif isinstance(event, TerrainChanged):
             self._terrain_view = event.terrain
             if self.terrain is not None:

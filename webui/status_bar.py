@@ -1,6 +1,6 @@
 """Under STOP in the console's header (``webui.stop_header``), always in view: recovery, the
-link, the regime, the display mode, a divergence warning with its re-sync, and the last notice (a
-refused operation names its rule).
+link, the regime, who holds control (and who asks for it), the display mode, a divergence warning
+with its re-sync, and the last notice (a refused operation names its rule).
 
 Why at the top and outside any tab or folder: over a delayed link the operator must be able to
 stop the robot with one click whatever panel is open, and must always know how old the picture
@@ -10,10 +10,12 @@ of the robot is (thesis 4.4: the delay only hurts when recovering, so recovery i
 from __future__ import annotations
 
 import logging
+import time
 
 import viser
 
 from server.console import (
+    ControlView,
     DisplayMode,
     DivergenceView,
     LinkView,
@@ -78,8 +80,20 @@ def regime_text(view: RegimeView) -> str:
     return f"Regime: **{REGIME_LABELS[view.regime]}** ({how}); zone: {view.zone.value}"
 
 
+def control_text(view: ControlView) -> str:
+    """Who may change the session: nobody holding control, anybody (this page too); a holder,
+    only it, and this page observes; a request waiting on the holder, with when it passes."""
+    if view.holder is None:
+        return "Control: **free**: this page may act"
+    text = f"Control: **{view.holder}** holds it; this page observes"
+    if view.asked is not None:
+        passes = time.strftime("%H:%M:%S", time.localtime(view.asked.passes_at))
+        text += f" · **{view.asked.by}** asks for it (passes at {passes} unless {view.holder} refuses)"
+    return text
+
+
 class StatusBar:
-    """Recovery, link, regime and mode selectors, divergence, notices."""
+    """Recovery, link, regime, control and mode selectors, divergence, notices."""
 
     def __init__(self, server: viser.ViserServer, session: Session, actions: Actions, board: NoticeBoard | None = None) -> None:
         self.server = server
@@ -97,6 +111,7 @@ class StatusBar:
             button.on_click(self._on_recovery)
         self.link = gui.add_markdown("Link: -")
         self.regime_line = gui.add_markdown("Regime: -")
+        self.control_line = gui.add_markdown(control_text(session.control.view()))
         self.regime = gui.add_dropdown("Regime", [AUTO] + [REGIME_LABELS[r] for r in Regime], initial_value=AUTO)
         self.regime.on_update(self._on_regime)
         self.mode = gui.add_dropdown("Display", [m.value for m in DisplayMode],
@@ -154,6 +169,9 @@ class StatusBar:
                 self.regime.value = wanted
             finally:
                 self._setting = False
+
+    def show_control(self, view: ControlView) -> None:
+        self.control_line.content = control_text(view)
 
     def show_mode(self, mode: DisplayMode) -> None:
         if self.mode.value != mode.value:
