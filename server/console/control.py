@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import secrets
+from dataclasses import dataclass
 
 from server.console.context import ConsoleContext
 from server.console.errors import ControlLockError
@@ -25,6 +26,16 @@ from server.console.views import Caller, ControlAsk, ControlAskGrant, ControlGra
 from shared.errors import InputError
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class _Request:
+    """A request for control: what everybody sees, the token the asker will hold, and when
+    (``ctx.clock()`` s) control passes if the holder says nothing."""
+
+    ask: ControlAsk
+    token: str
+    deadline: float
 
 
 def as_caller(client: Caller | str | None) -> Caller:
@@ -43,14 +54,12 @@ class ControlLock:
         self._since: float | None = None
         self._token: str | None = None
         self._takeover: ControlTakeover | None = None
-        self._ask: ControlAsk | None = None
-        self._ask_token: str | None = None
-        self._ask_deadline: float | None = None  # ctx.clock() s when control passes on silence
+        self._pending: _Request | None = None  # a request for control waiting on the holder
 
     def view(self) -> ControlView:
         """Who holds control, as everybody may see it: the holder's label, never its token."""
         with self._ctx.lock:
-            return ControlView(holder=self._holder, since=self._since, last_takeover=self._takeover, asked=self._ask)
+            return ControlView(holder=self._holder, since=self._since, last_takeover=self._takeover, asked=self._asked())
 
     @property
     def holder(self) -> Caller:
@@ -88,8 +97,8 @@ class ControlLock:
             if self._holder is not None and self._presents_token(caller):
                 return self._grant()
             former = self._holder
-            voided = self._ask.by if self._ask is not None else None
-            self._clear_ask()
+            voided = self._pending.ask.by if self._pending is not None else None
+            self._pending = None
             self._give(caller.name)
             if former is not None:
                 self._takeover = ControlTakeover(by=caller.name, former=former, at=self._since)
@@ -116,8 +125,8 @@ class ControlLock:
                 raise ControlLockError(self._refusal(caller, "release control"))
             former = self._holder
             self._holder = self._since = self._token = None
-            if self._ask is not None:  # somebody asked for it: released is handed over
-                events = self._pass_to_asker(f"control released by {former!r}: handed to {self._ask.by!r}, who asked")
+            if self._pending is not None:  # somebody asked for it: released is handed over
+                events = self._pass_to_asker(f"control released by {former!r}: handed to {self._pending.ask.by!r}, who asked")
             else:
                 log.info("control released by %r", former)
                 events = [ControlChanged(control=self.view())]
@@ -139,18 +148,16 @@ class ControlLock:
         with self._ctx.lock:
             if self._presents_token(caller):
                 return ControlAskGrant(**self._grant().model_dump())
-            if self._ask is not None:
-                if self._ask_token is not None and caller.token is not None and secrets.compare_digest(
-                        caller.token.encode(), self._ask_token.encode()):
+            if self._pending is not None:
+                if caller.token is not None and secrets.compare_digest(caller.token.encode(), self._pending.token.encode()):
                     return self._ask_grant()
                 raise ControlLockError(
-                    f"{self._ask.by!r} already asked {self._holder!r} for control; ask once that request is "
+                    f"{self._pending.ask.by!r} already asked {self._holder!r} for control; ask once that request is "
                     "answered, or take over explicitly with POST /api/control/takeover")
             timeout = self._ctx.settings.handover_timeout_s
             now = self._ctx.wall_clock()
-            self._ask = ControlAsk(by=caller.name, at=now, passes_at=now + timeout)
-            self._ask_token = secrets.token_urlsafe(16)
-            self._ask_deadline = self._ctx.clock() + timeout
+            self._pending = _Request(ControlAsk(by=caller.name, at=now, passes_at=now + timeout),
+                                     token=secrets.token_urlsafe(16), deadline=self._ctx.clock() + timeout)
             holder, answer = self._holder, self._ask_grant()
         log.info("%r asks %r for control", caller.name, holder)
         self._ctx.bus.emit([
@@ -164,7 +171,7 @@ class ControlLock:
         """The holder consents: control passes to the client that asked."""
         with self._ctx.lock:
             self._answerable(as_caller(client), "hand over control")
-            events = self._pass_to_asker(f"control handed over by {self._holder!r} to {self._ask.by!r}")
+            events = self._pass_to_asker(f"control handed over by {self._holder!r} to {self._pending.ask.by!r}")
         self._ctx.bus.emit(events)
         return self.view()
 
@@ -172,8 +179,8 @@ class ControlLock:
         """The holder refuses the pending request; it keeps control."""
         with self._ctx.lock:
             self._answerable(as_caller(client), "refuse the request for control")
-            asker = self._ask.by
-            self._clear_ask()
+            asker = self._pending.ask.by
+            self._pending = None
             holder = self._holder
         log.info("%r refused %r's request for control", holder, asker)
         view = self.view()
@@ -184,37 +191,36 @@ class ControlLock:
     def tick(self) -> None:
         """On the session's clock: a request the holder left unanswered past its timeout passes control."""
         with self._ctx.lock:
-            if self._ask is None or self._ask_deadline is None or self._ctx.clock() < self._ask_deadline:
+            if self._pending is None or self._ctx.clock() < self._pending.deadline:
                 return
-            holder, asker = self._holder, self._ask.by
+            holder, asker = self._holder, self._pending.ask.by
             events = self._pass_to_asker(f"{holder!r} did not answer {asker!r}'s request for control within "
                                          f"{self._ctx.settings.handover_timeout_s:g} s: control passed to {asker!r}")
         self._ctx.bus.emit(events)
 
     def _answerable(self, caller: Caller, what: str) -> None:
-        if self._ask is None:
-            raise ControlLockError(f"nobody asked for control: nothing to {what.split(' ')[0]}")
+        """Only the holder answers, and only a request (a request waits only while control is held)."""
+        if self._pending is None:
+            raise ControlLockError(f"nobody asked for control: cannot {what}")
         if not self._presents_token(caller):
-            raise ControlLockError(self._refusal(caller, what) if self._holder is not None
-                                   else f"nobody holds control: cannot {what}")
+            raise ControlLockError(self._refusal(caller, what))
 
     def _pass_to_asker(self, why: str) -> list[SessionEvent]:
         """Give control to the asker with the token it was given (under the lock); the events to
         publish once the lock is released."""
-        assert self._ask is not None and self._ask_token is not None
-        asker, token = self._ask.by, self._ask_token
-        self._clear_ask()
-        self._holder, self._since, self._token = asker, self._ctx.wall_clock(), token
+        assert self._pending is not None
+        request, self._pending = self._pending, None
+        self._holder, self._since, self._token = request.ask.by, self._ctx.wall_clock(), request.token
         log.info(why)
         return [ControlChanged(control=self.view()), Notice(level="warning", message=why)]
 
-    def _clear_ask(self) -> None:
-        self._ask = self._ask_token = self._ask_deadline = None
+    def _asked(self) -> ControlAsk | None:
+        return self._pending.ask if self._pending is not None else None
 
     def _ask_grant(self) -> ControlAskGrant:
-        assert self._ask_token is not None
+        assert self._pending is not None
         return ControlAskGrant(holder=self._holder, since=self._since, last_takeover=self._takeover,
-                               asked=self._ask, token=self._ask_token)
+                               asked=self._pending.ask, token=self._pending.token)
 
     def holds(self, client: Caller | str | None) -> bool:
         """Whether the caller holds control (presents the holder's token); nobody does while it is
@@ -239,8 +245,8 @@ class ControlLock:
 
     def _grant(self) -> ControlGrant:
         assert self._token is not None
-        return ControlGrant(holder=self._holder, since=self._since, last_takeover=self._takeover, asked=self._ask,
-                            token=self._token)
+        return ControlGrant(holder=self._holder, since=self._since, last_takeover=self._takeover,
+                            asked=self._asked(), token=self._token)
 
     def _presents_token(self, caller: Caller) -> bool:
         return (

@@ -4,6 +4,7 @@ control event and a notice. The lock on its own in virtual time, then through th
 
 from __future__ import annotations
 
+import logging
 import threading
 from types import SimpleNamespace
 
@@ -14,7 +15,7 @@ from server.app import create_app
 from server.console.control import ControlLock
 from server.console.errors import ControlLockError
 from server.console.events import ControlChanged, Notice
-from server.console.views import Caller, ControlAsk
+from server.console.views import Caller, ControlAsk, ControlAskGrant, ControlGrant, ControlTakeover
 from server.settings import ConsoleSettings
 from shared.errors import InputError
 
@@ -70,28 +71,45 @@ def test_asking_while_nobody_holds_control_takes_it_at_once(lock):
         lock.check(Caller("carol", None))
 
 
-def test_a_request_is_shown_and_changes_nothing_until_the_holder_answers(lock, time_):
+def test_a_request_is_shown_and_changes_nothing_until_the_holder_answers(lock, time_, caplog):
+    caplog.set_level(logging.INFO, logger="server.console.control")
     alice = lock.request("alice")
     answer = lock.ask("bob")
     asked = ControlAsk(by="bob", at=time_.unix(), passes_at=time_.unix() + TIMEOUT_S)
-    assert (answer.holder, answer.asked) == ("alice", asked)
+    assert answer == ControlAskGrant(holder="alice", since=alice.since, last_takeover=None, asked=asked, token=answer.token)
+    assert len(answer.token) == len(alice.token) == 22 and answer.token != alice.token
     assert lock.view().asked == asked
     assert _events(lock)[-1][0] == ControlChanged(control=lock.view())
     assert _notices(lock)[-1] == ("'bob' asks 'alice' for control: hand over or refuse; "
                                   "it passes in 30 s if 'alice' says nothing")
-    # the asker's token proves nothing yet; the holder's still does
+    assert caplog.records[-1].getMessage() == "'bob' asks 'alice' for control" and caplog.records[-1].levelname == "INFO"
+    # the asker's token proves nothing yet; the holder's still does, and its grant shows the request
     with pytest.raises(ControlLockError, match="held by 'alice'"):
         lock.check(Caller("bob", answer.token))
     lock.check(Caller("alice", alice.token))
+    assert lock.request(Caller("alice", alice.token)) == ControlGrant(
+        holder="alice", since=alice.since, last_takeover=None, asked=asked, token=alice.token)
     # asking again with the token repeats the answer; another asker waits its turn
     assert lock.ask(Caller("bob", answer.token)) == answer
-    with pytest.raises(ControlLockError, match="'bob' already asked 'alice' for control"):
+    with pytest.raises(ControlLockError) as err:
         lock.ask("carol")
-    with pytest.raises(InputError, match="client name"):
+    assert str(err.value) == ("'bob' already asked 'alice' for control; ask once that request is answered, "
+                              "or take over explicitly with POST /api/control/takeover")
+    with pytest.raises(InputError) as err:
         lock.ask(Caller(None, None))
+    assert str(err.value) == "a client name is needed to ask for control (header X-Teleprog-Client)"
 
 
-def test_the_holder_hands_over_and_the_roles_swap(lock):
+def test_a_request_after_a_takeover_shows_the_takeover(lock, time_):
+    lock.request("alice")
+    carol = lock.takeover("carol")
+    answer = lock.ask("bob")
+    assert answer.last_takeover == ControlTakeover(by="carol", former="alice", at=carol.since)
+    assert answer.since == carol.since and answer.holder == "carol"
+
+
+def test_the_holder_hands_over_and_the_roles_swap(lock, caplog):
+    caplog.set_level(logging.INFO, logger="server.console.control")
     alice = lock.request("alice")
     answer = lock.ask("bob")
     view = lock.hand_over(Caller("alice", alice.token))
@@ -101,27 +119,36 @@ def test_the_holder_hands_over_and_the_roles_swap(lock):
         lock.check(Caller("alice", alice.token))
     assert _events(lock)[-1] == [ControlChanged(control=lock.view()),
                                  Notice(level="warning", message="control handed over by 'alice' to 'bob'")]
+    assert caplog.records[-1].getMessage() == "control handed over by 'alice' to 'bob'"
 
 
 def test_only_the_holder_answers_and_only_a_request(lock):
     alice = lock.request("alice")
-    with pytest.raises(ControlLockError, match="nobody asked for control: nothing to hand"):
-        lock.hand_over(Caller("alice", alice.token))
-    answer = lock.ask("bob")
-    for who in (Caller("bob", answer.token), Caller("alice", None), None):
-        with pytest.raises(ControlLockError, match="held by 'alice'"):
-            lock.hand_over(who)
-        with pytest.raises(ControlLockError, match="held by 'alice'"):
-            lock.refuse(who)
+    for answer, what in ((lock.hand_over, "hand over control"), (lock.refuse, "refuse the request for control")):
+        with pytest.raises(ControlLockError) as err:
+            answer(Caller("alice", alice.token))
+        assert str(err.value) == f"nobody asked for control: cannot {what}"
+    asked = lock.ask("bob")
+    for answer, what in ((lock.hand_over, "hand over control"), (lock.refuse, "refuse the request for control")):
+        with pytest.raises(ControlLockError) as err:
+            answer(Caller("bob", asked.token))
+        assert str(err.value) == f"control is held by 'alice' and the token 'bob' presented is not its token: cannot {what}"
+        with pytest.raises(ControlLockError) as err:
+            answer(None)
+        assert str(err.value) == (f"control is held by 'alice': this page can only observe (to {what}, "
+                                  "present the holder's token in the X-Teleprog-Token header)")
     assert lock.view().holder == "alice" and lock.view().asked is not None
 
 
-def test_a_refusal_keeps_control_and_the_askers_token_never_works(lock, time_):
+def test_a_refusal_keeps_control_and_the_askers_token_never_works(lock, time_, caplog):
+    caplog.set_level(logging.INFO, logger="server.console.control")
     alice = lock.request("alice")
     answer = lock.ask("bob")
     view = lock.refuse(Caller("alice", alice.token))
     assert (view.holder, view.asked) == ("alice", None)
+    assert _events(lock)[-1][0] == ControlChanged(control=lock.view())
     assert _notices(lock)[-1] == "'alice' keeps control: 'bob''s request refused"
+    assert caplog.records[-1].getMessage() == "'alice' refused 'bob''s request for control"
     time_.now += 10 * TIMEOUT_S
     lock.tick()  # nothing pending: nothing passes
     assert lock.view().holder == "alice"
