@@ -75,27 +75,6 @@ def page(chromium, request):
     context.close()
 
 
-# The folders whose files start real processes and pages, slowest first. scripts/test hands whole
-# files to its workers (``--dist loadfile``) in collection order (``--no-loadscope-reorder``:
-# xdist's own order, files with most tests first, left the one-test end-to-end walks of 30-40 s
-# for last, where one worker ran them alone for minutes while the other had finished); with the
-# long files first, the many quick unit files fill in at the end and the workers end together.
-SLOW_FIRST = ("browser", "e2e", "safety", "trials", "recording", "server")
-
-
-def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    tests = Path(__file__).parent
-
-    def rank(item: pytest.Item) -> int:
-        try:
-            folder = item.path.relative_to(tests).parts[0]
-        except ValueError:
-            return len(SLOW_FIRST)
-        return SLOW_FIRST.index(folder) if folder in SLOW_FIRST else len(SLOW_FIRST)
-
-    items.sort(key=rank)  # stable: each file's tests stay together and in order
-
-
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)
 def pytest_runtest_makereport(item, call):
     outcome = yield
