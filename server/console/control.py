@@ -189,9 +189,13 @@ class ControlLock:
         return view
 
     def tick(self) -> None:
-        """On the session's clock: a request the holder left unanswered past its timeout passes control."""
+        """On the session's clock: a request the holder left unanswered past its timeout passes control.
+        Nothing waiting (the usual case, 30 times a second): one read, no lock."""
+        pending = self._pending
+        if pending is None or self._ctx.clock() < pending.deadline:
+            return
         with self._ctx.lock:
-            if self._pending is None or self._ctx.clock() < self._pending.deadline:
+            if self._pending is not pending:  # answered (or another asked) in between
                 return
             holder, asker = self._holder, self._pending.ask.by
             events = self._pass_to_asker(f"{holder!r} did not answer {asker!r}'s request for control within "
