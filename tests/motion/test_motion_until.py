@@ -99,6 +99,7 @@ def test_a_stepper_samples_in_batches_what_sample_gives_one_at_a_time(cell) -> N
     steps = []
     while not stepper.done:
         steps.append(stepper.step())
+        assert len(steps) < 10_000  # a stepper that never finishes fails here, not by eating memory
     assert len(steps) > 2 * STEP_CHUNK
     for step in steps[:-1]:
         one = seg.sample(step.t)
