@@ -484,7 +484,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
 
     sys.path.insert(0, str(ROOT / "tests" / "browser"))
     from console_page import ConsolePage
-    from support import CHROMIUM_ARGS, EventTimes, start_console, stop_process
+    from support import CHROMIUM_ARGS, EventFeed, start_console, stop_process
 
     executable = os.environ.get("CHROMIUM", "/usr/bin/chromium")
     if not Path(executable).exists():
@@ -524,7 +524,7 @@ def browser(seconds: float, idle_seconds: float = 5.0, amplitude_px: float = 60.
             scale = page.locator("canvas").first.bounding_box()["height"] / 900.0
             grab = _find_gizmo_grab(ui, cx, cy, scale)
             amplitude_px *= scale
-            events = EventTimes(console.url)  # closed in the finally below
+            events = EventFeed(console.url)  # closed in the finally below
             page.mouse.move(cx - 200, cy + 200)
             _settle(page)
             # the page at rest (the robot idle, its telemetry still arriving)

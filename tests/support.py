@@ -247,13 +247,15 @@ class ServerProcess:
         return self.proc.returncode if self.proc else None
 
 
-class EventTimes:
-    """Arrival times (``time.perf_counter``) of one kind of the console's events on
-    ``/api/events``, read on a thread. Use as a context manager (or ``close()``); an error of the
-    reader other than the socket closing is raised again by ``between`` and ``close``."""
+class EventFeed:
+    """The console's events of some kinds on ``/api/events`` as they arrive (``events``, parsed)
+    and their arrival times (``times``, ``time.perf_counter``), read on a thread. Use as a context
+    manager (or ``close()``); an error of the reader other than the socket closing is raised again
+    by ``between`` and ``close``."""
 
-    def __init__(self, console_url: str, kind: str = "arm") -> None:
-        self.kind = kind
+    def __init__(self, console_url: str, kinds: str | tuple[str, ...] = "arm") -> None:
+        self.kinds = (kinds,) if isinstance(kinds, str) else tuple(kinds)
+        self.events: list[dict] = []
         self.times: list[float] = []
         self._error: BaseException | None = None
         self._ws = connect_ws(console_url.replace("http", "ws", 1) + "/api/events", max_size=None, compression=None)
@@ -263,8 +265,10 @@ class EventTimes:
     def _read(self) -> None:
         try:
             for raw in self._ws:
-                if json.loads(raw).get("type") == self.kind:
+                event = json.loads(raw)
+                if event.get("type") in self.kinds:
                     self.times.append(time.perf_counter())
+                    self.events.append(event)
         except ConnectionClosed:
             pass
         except Exception as exc:  # noqa: BLE001 - handed to the test by between() and close()
@@ -283,7 +287,7 @@ class EventTimes:
         self._thread.join(timeout=5.0)
         self._check()
 
-    def __enter__(self) -> "EventTimes":
+    def __enter__(self) -> "EventFeed":
         return self
 
     def __exit__(self, *exc_info) -> None:

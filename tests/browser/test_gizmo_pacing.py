@@ -19,7 +19,7 @@ import time
 import pytest
 
 from console_page import ConsolePage
-from support import EventTimes
+from support import EventFeed
 
 pytestmark = pytest.mark.browser
 
@@ -50,7 +50,7 @@ def test_gizmo_updates_leave_the_page_faster_than_viser_paces_them(console, page
     cx, cy = ui.canvas_center()
     x_start = ui.session()["arm"]["tool_xyz_mm"][0]
     mm_per_px = abs(x_start - x_before) / FIRST_DRAG_PX  # how far the arm follows a pixel of drag in this view
-    with EventTimes(console.url) as events:
+    with EventFeed(console.url) as events:
         for grab in (40, 55, 30, 70, 25):  # where the x arrow is (as in ConsolePage.drag_gizmo_x)
             page.mouse.move(cx + grab, cy)
             ui.settle()  # hovered before the press

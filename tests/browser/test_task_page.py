@@ -12,15 +12,11 @@ is checked on the same run (it was a second console in ``tests/e2e``, walking th
 
 from __future__ import annotations
 
-import json
-import threading
 from collections.abc import Iterator
 
 import pytest
-from websockets.exceptions import ConnectionClosed
-from websockets.sync.client import connect as connect_ws
 from console_page import ConsolePage, wait_for
-from support import RunningConsole, screenshot_if_failed, start_console, stop_process
+from support import EventFeed, RunningConsole, screenshot_if_failed, start_console, stop_process
 
 pytestmark = pytest.mark.browser
 
@@ -51,30 +47,9 @@ def ui(sticky_console: RunningConsole, chromium, request) -> Iterator[ConsolePag
     context.close()
 
 
-def task_events(url: str) -> tuple[list[dict], object]:
-    """The ``task`` events of the console's ``/api/events`` as they come, and the socket to close."""
-    seen: list[dict] = []
-    ws = connect_ws(url.replace("http", "ws", 1) + "/api/events", max_size=None)
-
-    def listen() -> None:
-        try:
-            for raw in ws:
-                event = json.loads(raw)
-                if event.get("type") == "task":
-                    seen.append(event)
-        except ConnectionClosed:
-            pass
-
-    threading.Thread(target=listen, daemon=True).start()
-    return seen, ws
-
-
 def test_a_stuck_peg_shows_a_task_deviation_on_the_task_tab(ui: ConsolePage) -> None:
-    seen, ws = task_events(ui.console.url)
-    try:
-        walk_to_the_deviation(ui, seen)
-    finally:
-        ws.close()
+    with EventFeed(ui.console.url, "task") as feed:
+        walk_to_the_deviation(ui, feed.events)
 
 
 def walk_to_the_deviation(ui: ConsolePage, seen: list[dict]) -> None:

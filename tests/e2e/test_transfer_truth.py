@@ -14,19 +14,15 @@ loaded, previewed and submitted through the API only.
 
 from __future__ import annotations
 
-import json
-import threading
 
 import numpy as np
 import pytest
-from websockets.exceptions import ConnectionClosed
-from websockets.sync.client import connect as connect_ws
 
 from shared.cells.loader import DEFAULT_CELL, load_cell
 from shared.language.tasks import HOLE_DEPTH_M
 from shared.motion.frames import CellFrames
 from shared.paths import ASSETS_DIR
-from support import start_console, stop_process, wait_for
+from support import EventFeed, start_console, stop_process, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -38,19 +34,8 @@ FOOT_BELOW_TCP_M = 0.065  # the fingers' centre 15 mm below the 80 mm peg's top
 
 def test_the_peg_transfer_ends_where_the_robot_ends_with_one_truth(tmp_path) -> None:
     console = start_console(tmp_path, "--delay-ms", "200", "--no-record")
-    seen: list[dict] = []
-    ws = connect_ws(console.url.replace("http", "ws", 1) + "/api/events", max_size=None)
-
-    def listen() -> None:
-        try:
-            for raw in ws:
-                event = json.loads(raw)
-                if event.get("type") in ("divergence", "notice", "task"):
-                    seen.append(event)
-        except ConnectionClosed:
-            pass
-
-    threading.Thread(target=listen, daemon=True).start()
+    feed = EventFeed(console.url, ("divergence", "notice", "task"))
+    seen = feed.events
     api = console.call
     try:
         wait_for(lambda: api("GET", "/api/link")["status"] == "live", 60, 0.1, "a live link")
@@ -108,5 +93,7 @@ def test_the_peg_transfer_ends_where_the_robot_ends_with_one_truth(tmp_path) -> 
         warnings = [e["message"] for e in seen if e["type"] == "notice" and e["level"] != "info"]
         assert not any("diverg" in m.lower() or "task net" in m for m in warnings), warnings
     finally:
-        ws.close()
-        stop_process(console.proc)
+        try:
+            feed.close()
+        finally:
+            stop_process(console.proc)
