@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 from server.api.deps import ClientDep, SessionDep
 from server.api_models import ApiIn
 from server.console import (
+    Caller,
     ControlAskGrant,
     ControlGrant,
     ControlView,
@@ -39,6 +40,13 @@ def snapshot(session: SessionDep) -> SessionSnapshot:
     return session.snapshot()
 
 
+def named(client: Caller, what: str) -> Caller:
+    """The caller, refused (400) unless it names itself: control goes to a name people can read."""
+    if client.name is None:
+        raise InputError(f"name yourself with the X-Teleprog-Client header to {what}")
+    return client
+
+
 @router.get("/control", response_model=ControlView)
 def control(session: SessionDep) -> ControlView:
     return session.control.view()
@@ -49,18 +57,14 @@ def request_control(session: SessionDep, client: ClientDep) -> ControlGrant:
     """Take the control lock (name yourself with X-Teleprog-Client). The answer holds the token:
     present it as X-Teleprog-Token on every call that changes state, and to release. 409 while
     another holds control (take over explicitly with ``/api/control/takeover``)."""
-    if client.name is None:
-        raise InputError("name yourself with the X-Teleprog-Client header to take control")
-    return session.control.request(client)
+    return session.control.request(named(client, "take control"))
 
 
 @router.post("/control/takeover", response_model=ControlGrant)
 def takeover_control(session: SessionDep, client: ClientDep) -> ControlGrant:
     """Take the control lock from whoever holds it; logged, and the former holder sees it (a
     notice and a control event on ``/api/events``, ``last_takeover`` in ``GET /api/control``)."""
-    if client.name is None:
-        raise InputError("name yourself with the X-Teleprog-Client header to take over control")
-    return session.control.takeover(client)
+    return session.control.takeover(named(client, "take over control"))
 
 
 @router.post("/control/release", response_model=ControlView)
@@ -76,9 +80,7 @@ def ask_control(session: SessionDep, client: ClientDep) -> ControlAskGrant:
     timeout (``asked.passes_at``) control passes to you. The answer's token is yours to present
     once ``GET /api/control`` names you the holder. Nobody holding control: taken at once. 409 while
     another client's request waits."""
-    if client.name is None:
-        raise InputError("name yourself with the X-Teleprog-Client header to ask for control")
-    return session.control.ask(client)
+    return session.control.ask(named(client, "ask for control"))
 
 
 @router.post("/control/handover", response_model=ControlView)

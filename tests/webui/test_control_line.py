@@ -5,28 +5,13 @@ from __future__ import annotations
 
 import html
 
-import pytest
-import viser
-
-from server.console import Caller, Session
-from shared.cells.loader import DEFAULT_CELL, load_cell
-from support import free_port
-from webui.console import build_console
+from server.console import Caller
 
 
-@pytest.fixture(scope="module")
-def console():
-    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    session = Session(load_cell(DEFAULT_CELL))
-    try:
-        yield session, build_console(server, session)
-    finally:
-        session.close()
-        server.stop()
 
 
-def test_the_control_line_follows_requests_hand_overs_and_releases(console) -> None:
-    session, page = console
+def test_the_control_line_follows_requests_hand_overs_and_releases(built_console) -> None:
+    session, page = built_console
     line = page.status.control_line
     assert line.content == "Control: **free**: this page may act"
     alice = session.control.request("alice")

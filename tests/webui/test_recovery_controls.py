@@ -8,25 +8,12 @@ from __future__ import annotations
 import time
 
 import pytest
-import viser
 
-from server.console import LinkChanged, LinkView, SentListView, SentStatus, SentView, Session
-from shared.cells.loader import DEFAULT_CELL, load_cell
+from server.console import LinkChanged, LinkView, SentListView, SentStatus, SentView
 from shared.language.parser import parse_program
-from support import free_port
-from webui.console import build_console
 from webui.monitor_panel import sent_markdown
 
 
-@pytest.fixture(scope="module")
-def console():
-    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    session = Session(load_cell(DEFAULT_CELL))
-    try:
-        yield session, build_console(server, session)
-    finally:
-        session.close()
-        server.stop()
 
 
 def _link(state: str | None, *, pending: list[str] | None = None, connected: bool = True) -> LinkView:
@@ -38,16 +25,16 @@ def _link(state: str | None, *, pending: list[str] | None = None, connected: boo
     ("idle", set()), ("running", {"Skip", "Abort"}), ("stopped", {"Resume", "Skip", "Abort"}),
     ("fault", {"Resume", "Skip", "Abort"}), (None, set()),
 ])
-def test_recovery_buttons_are_on_only_when_they_can_act(console, state, on) -> None:
-    session, page = console
+def test_recovery_buttons_are_on_only_when_they_can_act(built_console, state, on) -> None:
+    session, page = built_console
     session.bus.emit([LinkChanged(link=_link(state))])
     assert {name for name, button in page.status.recovery.items() if not button.disabled} == on
     session.bus.emit([LinkChanged(link=_link("stopped", connected=False))])  # a lost link: nothing to act on
     assert all(button.disabled for button in page.status.recovery.values())
 
 
-def test_the_answer_to_stop_goes_once_the_robot_leaves_the_hold_even_to_idle(console) -> None:
-    session, page = console
+def test_the_answer_to_stop_goes_once_the_robot_leaves_the_hold_even_to_idle(built_console) -> None:
+    session, page = built_console
     header = page.stop
     header._sent_at = time.monotonic()  # noqa: SLF001 - a STOP left (press_stop needs a robot)
     session.bus.emit([LinkChanged(link=_link("idle", pending=["stop"]))])
@@ -69,8 +56,8 @@ def test_the_sent_list_shows_the_newest_first() -> None:
     assert [line.split()[0] for line in lines[1:]] == ["#3", "#2", "#1"]  # what waits, what runs, what ran
 
 
-def test_submit_is_off_with_nothing_to_submit(console) -> None:
-    session, page = console
+def test_submit_is_off_with_nothing_to_submit(built_console) -> None:
+    session, page = built_console
     assert session.program.view().empty_index == 0  # the session starts with an empty program
     page.monitor.show_program(session.program.view())  # what a connected page is sent
     assert page.monitor.submit.disabled and page.monitor.needs.button.disabled  # Submit range, Preview and submit
@@ -78,9 +65,9 @@ def test_submit_is_off_with_nothing_to_submit(console) -> None:
     assert not page.monitor.submit.disabled and not page.monitor.needs.button.disabled
 
 
-def test_the_regime_menu_names_regimes_in_the_operators_words(console) -> None:
+def test_the_regime_menu_names_regimes_in_the_operators_words(built_console) -> None:
     """The menu offers ONLINE / OFFLINE / SINGLE STEP with their zones, never the API's raw values."""
-    session, page = console
+    session, page = built_console
     options = list(page.status.regime.options)
     assert options == ["auto (by zone)", "ONLINE (free zone)", "OFFLINE (quasi-operation)", "SINGLE STEP (operation)"]
     from server.console import Regime
